@@ -1,0 +1,32 @@
+// Image files in and out, through OpenImageIO. Inside PropCam images are
+// cv::Mat in RGB channel order; 8-bit sRGB only at the edges, linear float
+// (CV_32FC3 / CV_32FC1) everywhere else.
+#pragma once
+
+#include <opencv2/core.hpp>
+#include <string>
+
+namespace propcam::capture {
+
+// The exact sRGB transfer functions (IEC 61966-2-1).
+float srgb_to_linear(float encoded);
+float linear_to_srgb(float linear);
+
+// CV_8UC3 sRGB -> CV_32FC3 linear, and back (clamped, rounded).
+cv::Mat srgb8_to_linear(const cv::Mat& srgb8);
+cv::Mat linear_to_srgb8(const cv::Mat& linear);
+
+// Reads a photo as linear RGB CV_32FC3. 8/16-bit files are taken as sRGB-encoded;
+// float files (EXR, HDR) as linear. Grey is expanded to RGB, alpha dropped.
+// Throws std::runtime_error naming the file on failure.
+cv::Mat load_photo_linear(const std::string& path);
+
+// Reads any image as stored (float channels, no transfer function applied).
+cv::Mat read_image_float(const std::string& path);
+
+// Writes atomically (temporary name in the same folder, then rename).
+// Float formats (.exr) store the Mat as float; others store 8-bit, and a float
+// Mat is then encoded from linear to sRGB first.
+void write_image(const std::string& path, const cv::Mat& image);
+
+}  // namespace propcam::capture

@@ -1,0 +1,158 @@
+#include "propcam/capture/image_file.h"
+
+#include <OpenImageIO/imageio.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <filesystem>
+#include <stdexcept>
+#include <unistd.h>
+
+namespace propcam::capture {
+namespace {
+
+// Decoding 8-bit values is the hot path: one table instead of a pow per channel.
+const std::array<float, 256>& srgb8_decode_table() {
+  static const std::array<float, 256> table = [] {
+    std::array<float, 256> t{};
+    for (int i = 0; i < 256; ++i) t[i] = srgb_to_linear(static_cast<float>(i) / 255.f);
+    return t;
+  }();
+  return table;
+}
+
+bool is_float_format(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  return ext == ".exr" || ext == ".hdr" || ext == ".tif" || ext == ".tiff" || ext == ".pfm";
+}
+
+cv::Mat to_three_channels(const cv::Mat& image) {
+  if (image.channels() == 3) return image;
+  std::vector<cv::Mat> planes;
+  cv::split(image, planes);
+  if (image.channels() == 1 || image.channels() == 2) return cv::Mat();  // caller expands grey
+  cv::Mat rgb;
+  cv::merge(std::vector<cv::Mat>{planes[0], planes[1], planes[2]}, rgb);
+  return rgb;
+}
+
+}  // namespace
+
+float srgb_to_linear(float v) {
+  if (!(v > 0.f)) return 0.f;  // also maps NaN to 0
+  return v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f);
+}
+
+float linear_to_srgb(float v) {
+  if (!(v > 0.f)) return 0.f;
+  return v <= 0.0031308f ? v * 12.92f : 1.055f * std::pow(v, 1.f / 2.4f) - 0.055f;
+}
+
+cv::Mat srgb8_to_linear(const cv::Mat& srgb8) {
+  CV_Assert(srgb8.type() == CV_8UC3);
+  const auto& table = srgb8_decode_table();
+  cv::Mat out(srgb8.size(), CV_32FC3);
+  for (int y = 0; y < srgb8.rows; ++y) {
+    const uint8_t* in = srgb8.ptr<uint8_t>(y);
+    float* o = out.ptr<float>(y);
+    for (int x = 0; x < srgb8.cols * 3; ++x) o[x] = table[in[x]];
+  }
+  return out;
+}
+
+cv::Mat linear_to_srgb8(const cv::Mat& linear) {
+  CV_Assert(linear.depth() == CV_32F);
+  cv::Mat out(linear.size(), CV_8UC(linear.channels()));
+  const int n = linear.cols * linear.channels();
+  for (int y = 0; y < linear.rows; ++y) {
+    const float* in = linear.ptr<float>(y);
+    uint8_t* o = out.ptr<uint8_t>(y);
+    for (int x = 0; x < n; ++x)
+      o[x] = static_cast<uint8_t>(std::lround(std::clamp(linear_to_srgb(in[x]), 0.f, 1.f) * 255.f));
+  }
+  return out;
+}
+
+cv::Mat read_image_float(const std::string& path) {
+  auto input = OIIO::ImageInput::open(path);
+  if (!input) throw std::runtime_error("cannot open image '" + path + "': " + OIIO::geterror());
+  const OIIO::ImageSpec& spec = input->spec();
+  if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0)
+    throw std::runtime_error("image '" + path + "' has no pixels");
+  cv::Mat image(spec.height, spec.width, CV_32FC(spec.nchannels));
+  if (!input->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, image.data))
+    throw std::runtime_error("cannot read image '" + path + "': " + input->geterror());
+  input->close();
+  return image;
+}
+
+cv::Mat load_photo_linear(const std::string& path) {
+  auto input = OIIO::ImageInput::open(path);
+  if (!input) throw std::runtime_error("cannot open photo '" + path + "': " + OIIO::geterror());
+  const OIIO::ImageSpec spec = input->spec();
+  input->close();
+  cv::Mat raw = read_image_float(path);
+  cv::Mat rgb;
+  if (raw.channels() <= 2) {
+    cv::Mat grey;
+    cv::extractChannel(raw, grey, 0);
+    cv::merge(std::vector<cv::Mat>{grey, grey, grey}, rgb);
+  } else {
+    rgb = to_three_channels(raw);
+  }
+  const bool stored_linear = spec.format.is_floating_point() || is_float_format(path);
+  if (!stored_linear) {
+    for (int y = 0; y < rgb.rows; ++y) {
+      float* p = rgb.ptr<float>(y);
+      for (int x = 0; x < rgb.cols * 3; ++x) p[x] = srgb_to_linear(p[x]);
+    }
+  }
+  // Non-finite or negative texels (lossy EXR) would poison every later stage.
+  cv::patchNaNs(rgb, 0.0);
+  cv::max(rgb, 0.0, rgb);
+  return rgb;
+}
+
+void write_image(const std::string& path, const cv::Mat& image) {
+  if (image.empty()) throw std::runtime_error("refusing to write an empty image to '" + path + "'");
+  const bool float_file = is_float_format(path);
+  cv::Mat data;
+  OIIO::TypeDesc type;
+  if (float_file) {
+    image.convertTo(data, CV_32F);
+    type = OIIO::TypeDesc::FLOAT;
+  } else if (image.depth() == CV_8U) {
+    data = image;
+    type = OIIO::TypeDesc::UINT8;
+  } else {
+    cv::Mat as_float;
+    image.convertTo(as_float, CV_32F);
+    data = linear_to_srgb8(as_float);
+    type = OIIO::TypeDesc::UINT8;
+  }
+  if (!data.isContinuous()) data = data.clone();
+
+  const std::filesystem::path final_path(path);
+  // Same folder (so rename is atomic), same extension (so the writer picks the format).
+  std::string temp_name = final_path.stem().string();
+  temp_name.insert(0, 1, '.');
+  temp_name += ".tmp" + std::to_string(::getpid()) + final_path.extension().string();
+  const std::filesystem::path temp_path = final_path.parent_path() / temp_name;
+  auto output = OIIO::ImageOutput::create(path);
+  if (!output) throw std::runtime_error("no image writer for '" + path + "': " + OIIO::geterror());
+  OIIO::ImageSpec spec(data.cols, data.rows, data.channels(), type);
+  if (float_file) spec.attribute("compression", "zip");
+  if (!output->open(temp_path.string(), spec))
+    throw std::runtime_error("cannot create '" + temp_path.string() + "': " + output->geterror());
+  const bool ok = output->write_image(type, data.data);
+  output->close();
+  if (!ok) {
+    std::filesystem::remove(temp_path);
+    throw std::runtime_error("cannot write '" + path + "': " + output->geterror());
+  }
+  std::filesystem::rename(temp_path, final_path);
+}
+
+}  // namespace propcam::capture

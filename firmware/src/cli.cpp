@@ -1,0 +1,313 @@
+#include "cli.h"
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+
+#include "bench.h"
+#include "compositor.h"
+#include "progress.h"
+#include "propcam/capture/image_file.h"
+#include "propcam/inference/infer.h"
+#include "propcam/render/props.h"
+#include "synthetic_truth.h"
+
+namespace propcam::firmware {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+// Parses "A,B" or "AxB" into two numbers.
+template <typename T>
+bool parse_pair(const std::string& text, T& a, T& b, char separator) {
+  std::istringstream in(text);
+  char sep = 0;
+  return static_cast<bool>(in >> a >> sep >> b) && sep == separator && in.peek() == EOF;
+}
+
+Eigen::Vector3f parse_rgb(const std::string& text) {
+  std::istringstream in(text);
+  float r, g, b;
+  char c1 = 0, c2 = 0;
+  if (!(in >> r >> c1 >> g >> c2 >> b) || c1 != ',' || c2 != ',')
+    throw std::invalid_argument("--albedo expects R,G,B (linear, 0..1), got '" + text + "'");
+  return {r, g, b};
+}
+
+json reports_json(const inference::SceneModel& scene) {
+  json out = json::array();
+  for (const auto& r : scene.reports) out.push_back(inference::to_json(r));
+  return out;
+}
+
+void print_reports(const inference::SceneModel& scene) {
+  for (const auto& r : scene.reports)
+    std::fprintf(stderr, "  %-18s %-6s %7.3fs  %s\n", r.stage.c_str(), r.usable ? "ok" : "UNUSABLE", r.seconds,
+                 r.why.c_str());
+}
+
+inference::SceneModel infer_with_progress(const cv::Mat& photo, const std::string& source, double camera_height,
+                                          Progress& progress) {
+  inference::InferenceOptions options;
+  options.camera_height_m = camera_height;
+  options.on_stage = [&](const std::string& s) { progress.stage("infer: " + s); };
+  inference::SceneModel scene = inference::infer_scene(photo, options);
+  scene.source_photo = source;
+  return scene;
+}
+
+struct InferArgs {
+  std::string photo, out, lines_csv, size;
+  double camera_height = 1.5;
+  bool json_out = false;
+};
+
+int cmd_infer(const InferArgs& a) {
+  Progress progress(a.json_out);
+  if (!a.lines_csv.empty()) {
+    // Camera stage on given segments (no photo needed).
+    int w = 0, h = 0;
+    if (!parse_pair(a.size, w, h, 'x') || w <= 0 || h <= 0)
+      throw std::invalid_argument("--lines needs --size WxH (e.g. 640x480)");
+    const auto lines = inference::read_lines_csv(a.lines_csv);
+    const auto cam = inference::estimate_camera(lines, w, h);
+    json out = {{"K", {{"fx", cam.fx}, {"fy", cam.fy}, {"cx", cam.cx}, {"cy", cam.cy}}},
+                {"R_world_from_cam", json::array()},
+                {"report", inference::to_json(cam.report)}};
+    for (int r = 0; r < 3; ++r)
+      out["R_world_from_cam"].push_back({cam.R_world_from_cam(r, 0), cam.R_world_from_cam(r, 1), cam.R_world_from_cam(r, 2)});
+    std::cout << out.dump(2) << std::endl;
+    return 0;
+  }
+  if (a.photo.empty()) throw std::invalid_argument("infer needs a PHOTO (or --lines FILE --size WxH)");
+  if (a.out.empty()) throw std::invalid_argument("infer needs -o SCENE_DIR");
+  progress.stage("loading " + a.photo);
+  const cv::Mat photo = capture::load_photo_linear(a.photo);
+  inference::SceneModel scene = infer_with_progress(photo, a.photo, a.camera_height, progress);
+  inference::save_scene(scene, a.out);
+  if (a.json_out) {
+    std::cout << json{{"scene", a.out}, {"reports", reports_json(scene)}}.dump(2) << std::endl;
+  } else {
+    print_reports(scene);
+    progress.stage("wrote " + a.out + "/scene.json");
+  }
+  return 0;
+}
+
+struct CompositeArgs {
+  std::string photo, scene_dir, prop, at, out, material, albedo, save_scene;
+  double height = 0, yaw = 0, camera_height = 1.5;
+  int spp = 16, bounces = 4;
+  uint64_t seed = 0x5eed;
+  bool json_out = false;
+};
+
+int cmd_composite(const CompositeArgs& a) {
+  Progress progress(a.json_out);
+  render::PropPlacement placement;
+  if (!parse_pair(a.at, placement.pixel_u, placement.pixel_v, ','))
+    throw std::invalid_argument("--at expects U,V in pixels, got '" + a.at + "'");
+  if (a.spp <= 0 || a.spp > 65536) throw std::invalid_argument("--spp must be in 1..65536");
+  if (a.bounces < 0 || a.bounces > 64) throw std::invalid_argument("--bounces must be in 0..64");
+  MaterialOverride material;
+  if (!a.material.empty()) material.type = a.material;
+  if (!a.albedo.empty()) material.albedo = parse_rgb(a.albedo);
+  const render::Mesh prop = load_prop(a.prop, material);
+  placement.height_m = a.height > 0 ? a.height : natural_height(a.prop, prop);
+  placement.yaw_deg = a.yaw;
+
+  progress.stage("loading " + a.photo);
+  const cv::Mat photo = capture::load_photo_linear(a.photo);
+  inference::SceneModel scene;
+  if (!a.scene_dir.empty()) {
+    scene = inference::load_scene(a.scene_dir);
+  } else {
+    scene = infer_with_progress(photo, a.photo, a.camera_height, progress);
+    if (!a.json_out) print_reports(scene);
+    if (!a.save_scene.empty()) inference::save_scene(scene, a.save_scene);
+  }
+  render::RenderSettings settings;
+  settings.samples_per_pixel = a.spp;
+  settings.max_bounces = a.bounces;
+  settings.seed = a.seed;
+  settings.progress = progress.fraction_printer("render");
+  progress.stage("render: " + std::to_string(a.spp) + " spp, " + std::to_string(a.bounces) + " bounces");
+  const CompositeResult result = composite_prop(photo, scene, prop, placement, settings);
+  capture::write_image(a.out, result.composite_linear);
+  const auto& st = result.render.stats;
+  const double skipped = st.camera_samples ? static_cast<double>(st.paths_prop_untouched) / st.camera_samples : 0.0;
+  json summary = {{"output", a.out},
+                  {"prop", a.prop},
+                  {"base_world", {result.placed.base_world.x(), result.placed.base_world.y(), result.placed.base_world.z()}},
+                  {"height_m", placement.height_m},
+                  {"render_seconds", st.seconds},
+                  {"scene_build_seconds", result.scene_build_seconds},
+                  {"samples_per_pixel", a.spp},
+                  {"rays", st.rays},
+                  {"samples_untouched_by_prop", skipped},
+                  {"total_seconds", progress.elapsed()}};
+  if (a.json_out) std::cout << summary.dump(2) << std::endl;
+  else {
+    std::fprintf(stderr, "render %.2fs, %.1f Mrays, %.0f%% of samples untouched by the prop (no second path)\n",
+                 st.seconds, st.rays / 1e6, 100.0 * skipped);
+    progress.stage("wrote " + a.out);
+  }
+  return 0;
+}
+
+int cmd_props(bool json_out) {
+  json list = json::array();
+  for (const auto& p : render::prop_presets()) {
+    const render::Mesh m = render::make_prop(p.name);
+    list.push_back({{"name", p.name}, {"description", p.description}, {"height_m", p.natural_height_m},
+                    {"triangles", m.triangles.size()}});
+  }
+  if (json_out) {
+    std::cout << list.dump(2) << std::endl;
+  } else {
+    for (const auto& p : list)
+      std::printf("%-14s %5.2f m  %6d tris  %s\n", p["name"].get<std::string>().c_str(), p["height_m"].get<double>(),
+                  p["triangles"].get<int>(), p["description"].get<std::string>().c_str());
+  }
+  return 0;
+}
+
+struct SynthArgs {
+  std::string out, size = "640x480", prop;
+  uint64_t seed = 1;
+  int spp = 64;
+  double height = 0;
+  bool json_out = false;
+};
+
+int cmd_synth(const SynthArgs& a) {
+  Progress progress(a.json_out);
+  render::SyntheticRoomSpec spec;
+  if (!parse_pair(a.size, spec.width, spec.height, 'x') || spec.width < 16 || spec.height < 16)
+    throw std::invalid_argument("--size expects WxH of at least 16x16");
+  spec.seed = a.seed;
+  render::RenderSettings settings;
+  settings.samples_per_pixel = a.spp;
+  settings.progress = progress.fraction_printer("synth photo");
+  const SyntheticShot shot = shoot_synthetic_room(spec, settings);
+  fs::create_directories(a.out);
+  capture::write_image((fs::path(a.out) / "photo.png").string(), shot.photo_linear);
+  capture::write_image((fs::path(a.out) / "photo.exr").string(), shot.photo_linear);
+  inference::save_scene(shot.truth, (fs::path(a.out) / "truth").string());
+  const Eigen::Vector2d at = free_floor_pixel(shot.room);
+  json summary = {{"photo", (fs::path(a.out) / "photo.png").string()},
+                  {"truth", (fs::path(a.out) / "truth").string()},
+                  {"free_floor_pixel", {at.x(), at.y()}},
+                  {"render_seconds", shot.photo_stats.seconds}};
+  if (!a.prop.empty()) {
+    const render::Mesh prop = load_prop(a.prop);
+    render::PropPlacement placement{at.x(), at.y(), a.height > 0 ? a.height : natural_height(a.prop, prop), 0.0};
+    settings.progress = progress.fraction_printer("synth insertion");
+    const cv::Mat inserted = render_full_insertion(shot.room, prop, placement, settings);
+    capture::write_image((fs::path(a.out) / "insertion.png").string(), inserted);
+    summary["insertion"] = (fs::path(a.out) / "insertion.png").string();
+  }
+  std::ofstream(fs::path(a.out) / "synth.json") << summary.dump(2) << "\n";
+  if (a.json_out) std::cout << summary.dump(2) << std::endl;
+  else progress.stage("wrote " + a.out);
+  return 0;
+}
+
+}  // namespace
+
+int run_cli(int argc, char** argv) {
+  CLI::App app{"PropCam: infer a scene from one photo and composite 3D props into it"};
+  app.require_subcommand(1);
+
+  InferArgs infer_args;
+  auto* infer = app.add_subcommand("infer", "Infer the scene model (camera, depth, albedo, lights) of a photo");
+  infer->add_option("photo", infer_args.photo, "Photo (PNG, JPEG, EXR, ...)");
+  infer->add_option("-o,--output", infer_args.out, "Scene folder to write");
+  infer->add_option("--lines", infer_args.lines_csv, "Run the camera stage on x1,y1,x2,y2 segments from a CSV file");
+  infer->add_option("--size", infer_args.size, "Image size WxH for --lines");
+  infer->add_option("--camera-height", infer_args.camera_height, "Camera height above the floor in metres")
+      ->check(CLI::PositiveNumber);
+  infer->add_flag("--json", infer_args.json_out, "Machine-readable output on stdout");
+
+  CompositeArgs comp;
+  auto* composite = app.add_subcommand("composite", "Place a prop in a photo and render the composite");
+  composite->add_option("photo", comp.photo, "Photo")->required()->check(CLI::ExistingFile);
+  composite->add_option("--scene", comp.scene_dir, "Scene folder from `propcam infer` (inferred if absent)");
+  composite->add_option("--prop", comp.prop, "Preset name (see `propcam props`) or mesh file (OBJ)")->required();
+  composite->add_option("--at", comp.at, "Pixel U,V of the support point under the prop")->required();
+  composite->add_option("--height", comp.height, "Prop height in metres (default: its natural size)");
+  composite->add_option("--yaw", comp.yaw, "Turn about the up axis, degrees counter-clockwise from above");
+  composite->add_option("--spp", comp.spp, "Samples per pixel");
+  composite->add_option("--bounces", comp.bounces, "Maximum bounces after the camera hit");
+  composite->add_option("--seed", comp.seed, "Random seed (same seed, same image)");
+  composite->add_option("--material", comp.material, "Override the prop's material: diffuse|glossy|metal")
+      ->check(CLI::IsMember({"diffuse", "glossy", "metal"}));
+  composite->add_option("--albedo", comp.albedo, "Override the prop's albedo: R,G,B linear in 0..1");
+  composite->add_option("--camera-height", comp.camera_height, "Camera height in metres when inferring")
+      ->check(CLI::PositiveNumber);
+  composite->add_option("--save-scene", comp.save_scene, "Also write the inferred scene folder here");
+  composite->add_option("-o,--output", comp.out, "Composite image to write (PNG, JPEG or EXR)")->required();
+  composite->add_flag("--json", comp.json_out, "Machine-readable summary on stdout");
+
+  bool props_json = false;
+  auto* props = app.add_subcommand("props", "List the preset props");
+  props->add_flag("--json", props_json, "Machine-readable output");
+
+  SynthArgs synth_args;
+  auto* synth = app.add_subcommand("synth", "Render a synthetic room with exact ground truth (test fixtures)");
+  synth->add_option("-o,--output", synth_args.out, "Folder to write")->required();
+  synth->add_option("--seed", synth_args.seed, "Room seed");
+  synth->add_option("--size", synth_args.size, "WxH");
+  synth->add_option("--spp", synth_args.spp, "Samples per pixel")->check(CLI::PositiveNumber);
+  synth->add_option("--prop", synth_args.prop, "Also render the room with this prop truly inserted");
+  synth->add_option("--height", synth_args.height, "Prop height in metres");
+  synth->add_flag("--json", synth_args.json_out, "Machine-readable summary");
+
+  BenchOptions bench_options;
+  bool bench_json = false;
+  std::string bench_size = "320x240";
+  auto* bench = app.add_subcommand("bench", "Time and error of every stage, and the renderer's error-vs-time curve");
+  bench->add_option("--size", bench_size, "Synthetic photo size WxH");
+  bench->add_option("--seed", bench_options.seed, "Synthetic room seed");
+  bench->add_option("--max-spp", bench_options.max_spp, "Largest samples per pixel in the sweep");
+  bench->add_option("--reference-spp", bench_options.reference_spp, "Samples per pixel of the reference render");
+  bench->add_option("--plot", bench_options.plot_dir, "Write PNG plots (gnuplot) to this folder");
+  bench->add_flag("--json", bench_json, "Machine-readable output");
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+  try {
+    if (*infer) return cmd_infer(infer_args);
+    if (*composite) return cmd_composite(comp);
+    if (*props) return cmd_props(props_json);
+    if (*synth) return cmd_synth(synth_args);
+    if (*bench) {
+      if (!parse_pair(bench_size, bench_options.width, bench_options.height, 'x') || bench_options.width < 32 ||
+          bench_options.height < 32)
+        throw std::invalid_argument("--size expects WxH of at least 32x32");
+      bench_options.quiet = bench_json;
+      const json result = run_bench(bench_options);
+      if (!bench_options.plot_dir.empty()) plot_bench(result, bench_options.plot_dir);
+      if (bench_json) std::cout << result.dump(2) << std::endl;
+      else std::cout << format_bench(result);
+      return 0;
+    }
+  } catch (const std::invalid_argument& e) {
+    std::cerr << "propcam: " << e.what() << std::endl;
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "propcam: error: " << e.what() << std::endl;
+    return 1;
+  }
+  return 0;
+}
+
+}  // namespace propcam::firmware

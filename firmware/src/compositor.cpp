@@ -1,0 +1,68 @@
+#include "compositor.h"
+
+#include <chrono>
+#include <filesystem>
+#include <stdexcept>
+
+#include "propcam/render/depth_mesh.h"
+#include "propcam/render/mesh_io.h"
+#include "propcam/render/props.h"
+#include "propcam/render/scene.h"
+
+namespace propcam::firmware {
+
+render::Mesh load_prop(const std::string& name_or_file, const MaterialOverride& override_material) {
+  render::Mesh mesh;
+  const bool is_file = name_or_file.find('/') != std::string::npos || name_or_file.find('.') != std::string::npos;
+  if (is_file) {
+    if (!std::filesystem::exists(name_or_file)) throw std::invalid_argument("no mesh file '" + name_or_file + "'");
+    mesh = render::load_mesh_file(name_or_file);
+  } else {
+    mesh = render::make_prop(name_or_file);
+  }
+  for (auto& m : mesh.materials) {
+    if (override_material.type) m.type = render::material_type_from_string(*override_material.type);
+    if (override_material.albedo) {
+      m.albedo = override_material.albedo->cwiseMax(0.f).cwiseMin(1.f);
+      m.texture.reset();
+    }
+  }
+  return mesh;
+}
+
+double natural_height(const std::string& name_or_file, const render::Mesh& mesh) {
+  for (const auto& preset : render::prop_presets())
+    if (preset.name == name_or_file) return preset.natural_height_m;
+  return mesh.bounds().sizes().y();
+}
+
+CompositeResult composite_prop(const cv::Mat& photo_linear, const inference::SceneModel& scene,
+                               const render::Mesh& prop, const render::PropPlacement& placement,
+                               const render::RenderSettings& settings) {
+  if (photo_linear.cols != scene.width || photo_linear.rows != scene.height)
+    throw std::invalid_argument("the scene model was inferred from a photo of another size (" +
+                                std::to_string(scene.width) + "x" + std::to_string(scene.height) + ")");
+  const auto start = std::chrono::steady_clock::now();
+  const render::PinholeCamera camera = scene.camera();
+  render::Scene world;
+  world.add_mesh(render::mesh_from_depth(scene.depth, scene.albedo, camera), render::Layer::Background);
+
+  // Placement needs the background alone; a small separate scene is cheaper
+  // than rebuilding, and keeps `world` unchanged until the prop is known.
+  render::Scene support;
+  support.add_mesh(world.mesh(0), render::Layer::Background);
+  support.commit();
+  CompositeResult result;
+  result.placed = render::place_prop(prop, camera, support, placement);
+  render::Mesh placed_mesh = prop;
+  placed_mesh.transform(result.placed.world_from_prop);
+  world.add_mesh(std::move(placed_mesh), render::Layer::Prop);
+  world.commit();
+  result.scene_build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+
+  result.render = render::render_differential(world, camera, scene.light_rig(), settings);
+  result.composite_linear = render::composite_differential(photo_linear, result.render);
+  return result;
+}
+
+}  // namespace propcam::firmware

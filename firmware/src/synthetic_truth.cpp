@@ -1,0 +1,71 @@
+#include "synthetic_truth.h"
+
+#include "propcam/render/scene.h"
+
+namespace propcam::firmware {
+
+SyntheticShot shoot_synthetic_room(const render::SyntheticRoomSpec& spec, const render::RenderSettings& settings) {
+  SyntheticShot shot;
+  shot.room = render::make_synthetic_room(spec);
+  render::Scene scene;
+  scene.add_mesh(shot.room.room, render::Layer::Background);
+  scene.commit();
+  shot.photo_linear = render::render_image(scene, shot.room.camera, shot.room.lights, settings, &shot.photo_stats);
+  const render::PrimaryBuffers gt = render::render_primary_buffers(scene, shot.room.camera, false);
+
+  inference::SceneModel& t = shot.truth;
+  const render::PinholeCamera& cam = shot.room.camera;
+  t.width = cam.width;
+  t.height = cam.height;
+  t.fx = cam.fx;
+  t.fy = cam.fy;
+  t.cx = cam.cx;
+  t.cy = cam.cy;
+  t.R_world_from_cam = cam.R_world_from_cam;
+  t.camera_height_m = cam.center_world.y();
+  t.depth = gt.depth;
+  t.albedo = gt.albedo;
+  t.normals = gt.normal;
+  t.indoor = true;
+  // Scene models put the world origin on the floor below the camera.
+  const Eigen::Vector3d shift(cam.center_world.x(), 0.0, cam.center_world.z());
+  for (const auto& a : shot.room.lights.area_lights) {
+    inference::LightSource l;
+    l.type = inference::LightSource::Type::Area;
+    l.corner = a.corner.cast<double>() - shift;
+    l.edge_u = a.edge_u.cast<double>();
+    l.edge_v = a.edge_v.cast<double>();
+    l.position = a.centre().cast<double>() - shift;
+    l.intensity = a.radiance.cast<double>();
+    t.lights.push_back(l);
+  }
+  t.planes.push_back({"floor", Eigen::Vector3d::UnitY(), 0.0});
+  inference::StageReport r;
+  r.stage = "ground_truth";
+  r.why = "synthetic room seed " + std::to_string(spec.seed);
+  t.reports.push_back(r);
+  return shot;
+}
+
+Eigen::Vector2d free_floor_pixel(const render::SyntheticRoom& room) {
+  Eigen::Vector2d px;
+  room.camera.project(room.free_floor_point.cast<double>(), px);
+  return px;
+}
+
+cv::Mat render_full_insertion(const render::SyntheticRoom& room, const render::Mesh& prop,
+                              const render::PropPlacement& placement, const render::RenderSettings& settings) {
+  render::Scene support;
+  support.add_mesh(room.room, render::Layer::Background);
+  support.commit();
+  const render::PlacedProp placed = render::place_prop(prop, room.camera, support, placement);
+  render::Scene scene;
+  scene.add_mesh(room.room, render::Layer::Background);
+  render::Mesh mesh = prop;
+  mesh.transform(placed.world_from_prop);
+  scene.add_mesh(std::move(mesh), render::Layer::Prop);
+  scene.commit();
+  return render::render_image(scene, room.camera, room.lights, settings);
+}
+
+}  // namespace propcam::firmware

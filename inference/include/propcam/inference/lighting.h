@@ -1,0 +1,51 @@
+// Materials and lighting (first cut): albedo by dividing out smooth shading,
+// visible light sources from bright regions lifted to 3D quads, out-of-view
+// light as the photo wrapped onto a sphere (Khan et al. 2006), and light
+// intensities fitted so that a render of the empty scene matches the photo
+// (the paper's basis-render optimisation, without the camera-response term).
+#pragma once
+
+#include <opencv2/core.hpp>
+#include <vector>
+
+#include "propcam/inference/scene_model.h"
+#include "propcam/render/camera.h"
+
+namespace propcam::inference {
+
+struct AlbedoOptions {
+  double shading_sigma_fraction = 0.04;  // of the image diagonal
+  double mean_albedo = 0.5;              // reflectance assigned to average shading
+};
+
+cv::Mat estimate_albedo(const cv::Mat& photo_linear, const AlbedoOptions& options, StageReport& report);
+
+struct LightingOptions {
+  int max_area_lights = 4;
+  double bright_fraction_of_max = 0.8;  // a source is at least this bright relative to the brightest pixel
+  double min_source_luminance = 0.6;    // and at least this bright (linear)
+  double min_source_area_fraction = 2e-4;
+  int environment_width = 128;          // equirectangular, height = width/2
+  int fit_width = 160;                  // basis renders' resolution
+  int fit_samples_per_pixel = 8;
+  int fit_bounces = 2;
+  int max_fit_iterations = 500;
+  double fit_tolerance = 1e-7;          // relative change that ends coordinate descent
+  double sparsity = 1e-3;               // L1 weight on intensities (the paper's sparsity prior)
+  uint64_t seed = 11;
+};
+
+struct LightingEstimate {
+  std::vector<LightSource> lights;  // intensities fitted
+  cv::Mat source_mask;              // CV_8U, 255 on detected source pixels
+  std::vector<StageReport> reports; // sources, environment, intensity fit
+};
+
+LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& depth, const cv::Mat& albedo,
+                                   const render::PinholeCamera& camera, const LightingOptions& options);
+
+// Khan-style environment: directions in front of the camera see the (blurred)
+// photo, directions behind it its mirror image.
+cv::Mat environment_from_photo(const cv::Mat& photo_linear, const render::PinholeCamera& camera, int width);
+
+}  // namespace propcam::inference

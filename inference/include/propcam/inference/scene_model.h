@@ -1,0 +1,74 @@
+// The inferred 3D model of a photographed scene, and its folder format:
+// scene.json + depth.exr + albedo.exr + normals.exr + lights/*.exr.
+#pragma once
+
+#include <Eigen/Core>
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+#include "propcam/render/camera.h"
+#include "propcam/render/lights.h"
+
+namespace propcam::inference {
+
+// What every stage returns, so the CLI, UI and bench can show cost and quality.
+struct StageReport {
+  std::string stage;
+  bool usable = true;
+  std::string why;         // the case that applied, or why it is unusable
+  int iterations = 0;
+  double seconds = 0.0;
+  double error = -1.0;     // the stage's own error estimate; < 0 when it has none
+  nlohmann::json details = nlohmann::json::object();
+};
+
+struct LightSource {
+  enum class Type { Area, Point, Sun, Ibl };
+  Type type = Type::Area;
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();   // area/point: centre (world)
+  Eigen::Vector3d direction = Eigen::Vector3d::Zero();  // sun: toward the light
+  Eigen::Vector3d intensity = Eigen::Vector3d::Ones();  // linear RGB radiance scale
+  // Area: the quad (world), emitting on the side of edge_u x edge_v.
+  Eigen::Vector3d corner = Eigen::Vector3d::Zero(), edge_u = Eigen::Vector3d::Zero(),
+                  edge_v = Eigen::Vector3d::Zero();
+  cv::Mat environment;  // Ibl: equirectangular CV_32FC3, unit scale
+  std::string file;     // Ibl: file name inside the scene folder
+};
+
+const char* to_string(LightSource::Type type);
+
+struct SupportPlane {
+  std::string name;       // floor, wall_front, ...
+  Eigen::Vector3d normal;  // world, unit, facing the camera
+  double offset = 0.0;     // plane: normal . x + offset = 0
+};
+
+struct SceneModel {
+  int width = 0, height = 0;
+  double fx = 0, fy = 0, cx = 0, cy = 0;
+  Eigen::Matrix3d R_world_from_cam = Eigen::Matrix3d::Identity();
+  double camera_height_m = 1.5;
+  double gamma = 2.2;         // camera response exponent the photo was linearised with
+  bool indoor = true;
+  cv::Mat depth;    // CV_32F metres along camera z
+  cv::Mat albedo;   // CV_32FC3 linear RGB
+  cv::Mat normals;  // CV_32FC3 world unit normals
+  std::vector<LightSource> lights;
+  std::vector<SupportPlane> planes;
+  std::vector<StageReport> reports;
+  std::string source_photo;
+
+  render::PinholeCamera camera() const;
+  render::LightRig light_rig() const;
+  // Throws std::runtime_error when a number is non-finite or a size disagrees.
+  void validate() const;
+};
+
+void save_scene(const SceneModel& scene, const std::string& folder);
+SceneModel load_scene(const std::string& folder);
+
+nlohmann::json to_json(const StageReport& report);
+
+}  // namespace propcam::inference

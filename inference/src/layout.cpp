@@ -1,0 +1,129 @@
+#include "propcam/inference/layout.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+
+namespace propcam::inference {
+namespace {
+
+using Eigen::Vector3d;
+
+// Rays flatter than this never reach the floor or ceiling in practice.
+constexpr double kMinVerticalComponent = 1e-4;
+// A floor contact must be at least this far below the horizon (ray y).
+constexpr double kMinFloorRaySlope = 0.02;
+
+double percentile(std::vector<double> v, double p) {
+  std::sort(v.begin(), v.end());
+  const double pos = p * (v.size() - 1);
+  const size_t i = static_cast<size_t>(pos);
+  const double f = pos - i;
+  return i + 1 < v.size() ? v[i] * (1 - f) + v[i + 1] * f : v[i];
+}
+
+}  // namespace
+
+bool classify_indoor(const cv::Mat& photo_linear, StageReport& report) {
+  const auto start = std::chrono::steady_clock::now();
+  report.stage = "scene_class";
+  const int band = std::max(1, photo_linear.rows / 6);
+  const cv::Mat top = photo_linear.rowRange(0, band);
+  cv::Mat grey;
+  cv::cvtColor(top, grey, cv::COLOR_RGB2GRAY);
+  const double brightness = cv::mean(grey)[0];
+  const cv::Scalar rgb = cv::mean(top);
+  cv::Mat gx, gy;
+  cv::Sobel(grey, gx, CV_32F, 1, 0);
+  cv::Sobel(grey, gy, CV_32F, 0, 1);
+  const double texture = (cv::mean(cv::abs(gx))[0] + cv::mean(cv::abs(gy))[0]) / std::max(brightness, 1e-3);
+  const bool bluish = rgb[2] > rgb[0] * 1.05;
+  const bool sky = brightness > 0.3 && texture < 0.35 && (bluish || brightness > 0.6);
+  report.usable = true;
+  report.why = sky ? "bright smooth top band: outdoor" : "indoor";
+  report.details = {{"top_brightness", brightness}, {"top_texture", texture}, {"bluish", bluish}};
+  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return !sky;
+}
+
+Layout estimate_layout(const render::PinholeCamera& camera, const std::vector<LineSegment>& lines,
+                       const std::vector<int>& line_labels, bool indoor, const LayoutOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  Layout layout;
+  const double h = camera.center_world.y();
+  // Floor contacts: the lower end of each vertical edge seen below the horizon.
+  std::vector<Vector3d> contacts;
+  for (size_t i = 0; i < lines.size() && i < line_labels.size(); ++i) {
+    if (line_labels[i] != 1) continue;
+    const Vector3d da = camera.ray_direction(lines[i].a.x(), lines[i].a.y());
+    const Vector3d db = camera.ray_direction(lines[i].b.x(), lines[i].b.y());
+    const Vector3d& low = da.y() < db.y() ? da : db;
+    if (low.y() > -kMinFloorRaySlope) continue;
+    const Vector3d p = camera.center_world + low * (h / -low.y());
+    if (p.allFinite()) contacts.push_back(p);
+  }
+  // Wall distance in each horizontal direction (+X, -X, +Z, -Z) from the camera.
+  const double fallback = indoor ? options.default_wall_distance_indoor_m : options.default_wall_distance_outdoor_m;
+  const Vector3d axes[4] = {Vector3d::UnitX(), -Vector3d::UnitX(), Vector3d::UnitZ(), -Vector3d::UnitZ()};
+  const char* names[4] = {"wall_pos_x", "wall_neg_x", "wall_pos_z", "wall_neg_z"};
+  double wall[4];
+  int evidence[4];
+  for (int a = 0; a < 4; ++a) {
+    std::vector<double> dist;
+    for (const auto& p : contacts) {
+      const double d = (p - camera.center_world).dot(axes[a]);
+      // Count a contact for the wall it is most in front of.
+      const Vector3d rel = p - camera.center_world;
+      const double lateral = std::abs(a < 2 ? rel.z() : rel.x());
+      if (d > 0 && d >= lateral * 0.5) dist.push_back(d);
+    }
+    evidence[a] = static_cast<int>(dist.size());
+    wall[a] = dist.size() >= 3 ? percentile(dist, options.wall_percentile) : (dist.empty() ? fallback : *std::max_element(dist.begin(), dist.end()));
+    wall[a] = std::clamp(wall[a] + 0.05, options.min_wall_distance_m, options.max_depth_m);
+  }
+
+  layout.depth = cv::Mat(camera.height, camera.width, CV_32F);
+  layout.normals = cv::Mat(camera.height, camera.width, CV_32FC3);
+  const double ceiling = std::max(options.ceiling_height_m, h + 0.3);
+  const Vector3d forward = camera.R_world_from_cam.col(2);
+  for (int y = 0; y < camera.height; ++y)
+    for (int x = 0; x < camera.width; ++x) {
+      const Vector3d d = camera.ray_direction(x, y);
+      double t = options.max_depth_m / std::max(d.dot(forward), 1e-3);
+      Vector3d n = -d;
+      auto consider = [&](double candidate, const Vector3d& normal) {
+        if (candidate > 0 && candidate < t) {
+          t = candidate;
+          n = normal;
+        }
+      };
+      if (d.y() < -kMinVerticalComponent) consider(h / -d.y(), Vector3d::UnitY());
+      if (indoor && d.y() > kMinVerticalComponent) consider((ceiling - h) / d.y(), -Vector3d::UnitY());
+      for (int a = 0; a < 4; ++a) {
+        const double along = d.dot(axes[a]);
+        if (along > kMinVerticalComponent) consider(wall[a] / along, -axes[a]);
+      }
+      const double z = std::min(t * d.dot(forward), options.max_depth_m);
+      layout.depth.at<float>(y, x) = static_cast<float>(std::max(z, 1e-3));
+      layout.normals.at<cv::Vec3f>(y, x) = cv::Vec3f(static_cast<float>(n.x()), static_cast<float>(n.y()),
+                                                     static_cast<float>(n.z()));
+    }
+  layout.planes.push_back({"floor", Vector3d::UnitY(), 0.0});
+  if (indoor) layout.planes.push_back({"ceiling", -Vector3d::UnitY(), ceiling});
+  for (int a = 0; a < 4; ++a) layout.planes.push_back({names[a], -axes[a], wall[a]});
+
+  StageReport& r = layout.report;
+  r.stage = "geometry";
+  r.usable = true;
+  r.why = contacts.empty() ? "no floor contacts: default room box" : "box fitted to floor contacts";
+  r.iterations = 1;
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  r.details = {{"floor_contacts", contacts.size()},
+               {"walls_m", {wall[0], wall[1], wall[2], wall[3]}},
+               {"walls_evidence", {evidence[0], evidence[1], evidence[2], evidence[3]}},
+               {"indoor", indoor}};
+  return layout;
+}
+
+}  // namespace propcam::inference

@@ -1,0 +1,289 @@
+#include "propcam/inference/lighting.h"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+
+#include "propcam/render/depth_mesh.h"
+#include "propcam/render/path_tracer.h"
+#include "propcam/render/scene.h"
+
+namespace propcam::inference {
+namespace {
+
+using Eigen::Vector3d;
+using Clock = std::chrono::steady_clock;
+
+// Shading below this (linear) is treated as this, so black pixels keep a finite albedo.
+constexpr double kMinShading = 1e-3;
+constexpr double kMaxAlbedo = 0.95;
+// Source quads are pulled this far toward the camera off the surface they were seen on.
+constexpr double kSourceStandOffM = 0.02;
+constexpr double kSaturatedLinear = 0.98;
+
+double seconds_since(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+cv::Mat luminance(const cv::Mat& rgb) {
+  cv::Mat grey;
+  cv::transform(rgb, grey, cv::Matx13f(0.2126f, 0.7152f, 0.0722f));
+  return grey;
+}
+
+render::PinholeCamera scaled_camera(const render::PinholeCamera& cam, int width, int height) {
+  render::PinholeCamera out = cam;
+  const double sx = static_cast<double>(width) / cam.width, sy = static_cast<double>(height) / cam.height;
+  out.width = width;
+  out.height = height;
+  out.fx = cam.fx * sx;
+  out.fy = cam.fy * sy;
+  out.cx = (cam.cx + 0.5) * sx - 0.5;
+  out.cy = (cam.cy + 0.5) * sy - 0.5;
+  return out;
+}
+
+// Fits a one-sided quad to the 3D points of a source region (normal along
+// the direction of least variance, facing the camera).
+LightSource quad_from_points(const std::vector<Vector3d>& points, const Vector3d& camera_centre) {
+  Vector3d mean = Vector3d::Zero();
+  for (const auto& p : points) mean += p;
+  mean /= static_cast<double>(points.size());
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (const auto& p : points) cov += (p - mean) * (p - mean).transpose();
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+  Vector3d normal = eig.eigenvectors().col(0);
+  if (normal.dot(camera_centre - mean) < 0) normal = -normal;
+  Vector3d axis_u = eig.eigenvectors().col(2), axis_v = normal.cross(axis_u);
+  double umin = 0, umax = 0, vmin = 0, vmax = 0;
+  for (const auto& p : points) {
+    const double u = (p - mean).dot(axis_u), v = (p - mean).dot(axis_v);
+    umin = std::min(umin, u), umax = std::max(umax, u), vmin = std::min(vmin, v), vmax = std::max(vmax, v);
+  }
+  // Keep quads from degenerating to lines.
+  const double min_extent = 0.02;
+  if (umax - umin < min_extent) umin -= min_extent / 2, umax += min_extent / 2;
+  if (vmax - vmin < min_extent) vmin -= min_extent / 2, vmax += min_extent / 2;
+  LightSource l;
+  l.type = LightSource::Type::Area;
+  const Vector3d centre = mean + normal * kSourceStandOffM;
+  l.corner = centre + umin * axis_u + vmin * axis_v;
+  l.edge_u = (umax - umin) * axis_u;
+  l.edge_v = (vmax - vmin) * axis_v;
+  if (l.edge_u.cross(l.edge_v).dot(normal) < 0) std::swap(l.edge_u, l.edge_v);
+  l.position = l.corner + 0.5 * (l.edge_u + l.edge_v);
+  return l;
+}
+
+}  // namespace
+
+cv::Mat estimate_albedo(const cv::Mat& photo_linear, const AlbedoOptions& options, StageReport& report) {
+  const auto start = Clock::now();
+  const cv::Mat lum = luminance(photo_linear);
+  const double sigma = std::max(1.0, options.shading_sigma_fraction * std::hypot(lum.cols, lum.rows));
+  cv::Mat shading;
+  cv::GaussianBlur(lum, shading, cv::Size(0, 0), sigma, sigma, cv::BORDER_REFLECT);
+  shading = cv::max(shading, kMinShading);
+  cv::Mat albedo(photo_linear.size(), CV_32FC3);
+  for (int y = 0; y < albedo.rows; ++y)
+    for (int x = 0; x < albedo.cols; ++x) {
+      const cv::Vec3f c = photo_linear.at<cv::Vec3f>(y, x);
+      const float s = shading.at<float>(y, x);
+      cv::Vec3f a;
+      for (int k = 0; k < 3; ++k)
+        a[k] = static_cast<float>(std::clamp(options.mean_albedo * c[k] / s, 0.0, kMaxAlbedo));
+      albedo.at<cv::Vec3f>(y, x) = a;
+    }
+  report.stage = "albedo";
+  report.usable = true;
+  report.why = "photo divided by blurred luminance (first cut; Retinex in a later issue)";
+  report.seconds = seconds_since(start);
+  return albedo;
+}
+
+cv::Mat environment_from_photo(const cv::Mat& photo_linear, const render::PinholeCamera& camera, int width) {
+  width = std::max(8, width);
+  const int height = width / 2;
+  // A heavily blurred copy: the environment is seen only through glossy and diffuse reflection.
+  cv::Mat small;
+  cv::resize(photo_linear, small, cv::Size(64, std::max(2, 64 * photo_linear.rows / std::max(1, photo_linear.cols))),
+             0, 0, cv::INTER_AREA);
+  cv::GaussianBlur(small, small, cv::Size(0, 0), 2.0);
+  const double sx = static_cast<double>(small.cols) / camera.width, sy = static_cast<double>(small.rows) / camera.height;
+  cv::Mat env(height, width, CV_32FC3);
+  for (int y = 0; y < height; ++y)
+    for (int x = 0; x < width; ++x) {
+      const Eigen::Vector3f dw = render::EnvironmentLight::uv_to_direction((x + 0.5f) / width, (y + 0.5f) / height);
+      Vector3d dc = camera.R_world_from_cam.transpose() * dw.cast<double>();
+      dc.z() = std::abs(dc.z());  // behind the camera: mirror
+      dc.z() = std::max(dc.z(), 0.05);
+      const double u = std::clamp((camera.fx * dc.x() / dc.z() + camera.cx + 0.5) * sx, 0.0, small.cols - 1.0);
+      const double v = std::clamp((camera.fy * dc.y() / dc.z() + camera.cy + 0.5) * sy, 0.0, small.rows - 1.0);
+      env.at<cv::Vec3f>(y, x) = small.at<cv::Vec3f>(static_cast<int>(v), static_cast<int>(u));
+    }
+  return env;
+}
+
+LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& depth, const cv::Mat& albedo,
+                                   const render::PinholeCamera& camera, const LightingOptions& options) {
+  LightingEstimate out;
+  // --- Visible sources: bright connected regions, lifted to 3D with depth.
+  auto start = Clock::now();
+  const cv::Mat lum = luminance(photo_linear);
+  double max_lum = 0;
+  cv::minMaxLoc(lum, nullptr, &max_lum);
+  const double threshold = std::max(options.min_source_luminance, options.bright_fraction_of_max * max_lum);
+  cv::Mat bright = lum >= threshold;
+  cv::morphologyEx(bright, bright, cv::MORPH_OPEN, cv::getStructuringElement(cv::MORPH_ELLIPSE, {3, 3}));
+  cv::Mat labels, stats, centroids;
+  const int n = cv::connectedComponentsWithStats(bright, labels, stats, centroids, 8, CV_32S);
+  std::vector<std::pair<int, int>> regions;  // (area, label)
+  const double min_area = options.min_source_area_fraction * photo_linear.total();
+  for (int i = 1; i < n; ++i)
+    if (stats.at<int>(i, cv::CC_STAT_AREA) >= std::max(4.0, min_area)) regions.push_back({stats.at<int>(i, cv::CC_STAT_AREA), i});
+  std::sort(regions.rbegin(), regions.rend());
+  if (static_cast<int>(regions.size()) > options.max_area_lights) regions.resize(options.max_area_lights);
+  out.source_mask = cv::Mat::zeros(photo_linear.size(), CV_8U);
+  for (const auto& [area, label] : regions) {
+    std::vector<Vector3d> points;
+    for (int y = 0; y < labels.rows; ++y)
+      for (int x = 0; x < labels.cols; ++x) {
+        if (labels.at<int>(y, x) != label) continue;
+        out.source_mask.at<uint8_t>(y, x) = 255;
+        const double d = depth.at<float>(y, x);
+        const Vector3d dir_cam((x - camera.cx) / camera.fx, (y - camera.cy) / camera.fy, 1.0);
+        points.push_back(camera.center_world + camera.R_world_from_cam * (dir_cam * d));
+      }
+    out.lights.push_back(quad_from_points(points, camera.center_world));
+  }
+  StageReport sources;
+  sources.stage = "light_sources";
+  sources.usable = true;
+  sources.why = regions.empty() ? "no bright region: light comes from outside the frame"
+                                : std::to_string(regions.size()) + " bright regions above " + std::to_string(threshold);
+  sources.seconds = seconds_since(start);
+  sources.details = {{"threshold", threshold}, {"regions", regions.size()}};
+  out.reports.push_back(sources);
+
+  // --- Out-of-view light: the photo wrapped onto a sphere.
+  start = Clock::now();
+  LightSource ibl;
+  ibl.type = LightSource::Type::Ibl;
+  ibl.environment = environment_from_photo(photo_linear, camera, options.environment_width);
+  out.lights.push_back(ibl);
+  StageReport env;
+  env.stage = "environment";
+  env.why = "photo wrapped onto a sphere (Khan et al.); IBL matching in a later issue";
+  env.seconds = seconds_since(start);
+  out.reports.push_back(env);
+
+  // --- Intensities: basis renders of the empty scene, one light at a time,
+  //     then non-negative least squares with an L1 sparsity prior per channel.
+  start = Clock::now();
+  const int fit_w = std::min(options.fit_width, camera.width);
+  const int fit_h = std::max(1, static_cast<int>(std::lround(static_cast<double>(fit_w) * camera.height / camera.width)));
+  const render::PinholeCamera fit_camera = scaled_camera(camera, fit_w, fit_h);
+  cv::Mat fit_photo, fit_depth, fit_albedo, fit_mask;
+  cv::resize(photo_linear, fit_photo, {fit_w, fit_h}, 0, 0, cv::INTER_AREA);
+  cv::resize(depth, fit_depth, {fit_w, fit_h}, 0, 0, cv::INTER_NEAREST);
+  cv::resize(albedo, fit_albedo, {fit_w, fit_h}, 0, 0, cv::INTER_AREA);
+  cv::resize(out.source_mask, fit_mask, {fit_w, fit_h}, 0, 0, cv::INTER_NEAREST);
+  render::Scene scene;
+  render::DepthMeshOptions mesh_options;
+  mesh_options.step_pixels = 1;
+  scene.add_mesh(render::mesh_from_depth(fit_depth, fit_albedo, fit_camera, mesh_options), render::Layer::Background);
+  scene.commit();
+  render::LightRig rig;
+  for (const auto& l : out.lights) {
+    if (l.type == LightSource::Type::Area) {
+      render::AreaLight a;
+      a.corner = l.corner.cast<float>();
+      a.edge_u = l.edge_u.cast<float>();
+      a.edge_v = l.edge_v.cast<float>();
+      a.radiance = Eigen::Vector3f::Ones();
+      rig.area_lights.push_back(a);
+    } else {
+      rig.environment = std::make_shared<render::EnvironmentLight>(l.environment);
+    }
+  }
+  render::RenderSettings settings;
+  settings.samples_per_pixel = options.fit_samples_per_pixel;
+  settings.max_bounces = options.fit_bounces;
+  settings.seed = options.seed;
+  const int k = rig.count();
+  std::vector<cv::Mat> basis;
+  for (int i = 0; i < k; ++i) basis.push_back(render::render_image(scene, fit_camera, rig.only(i), settings));
+  // Pixels that inform the fit: not the sources themselves, not clipped.
+  std::vector<cv::Point> used;
+  for (int y = 0; y < fit_h; ++y)
+    for (int x = 0; x < fit_w; ++x) {
+      const cv::Vec3f c = fit_photo.at<cv::Vec3f>(y, x);
+      if (fit_mask.at<uint8_t>(y, x) == 0 && c[0] < kSaturatedLinear && c[1] < kSaturatedLinear && c[2] < kSaturatedLinear)
+        used.push_back({x, y});
+    }
+  int max_iterations_used = 0;
+  bool converged = true;
+  double residual = 0, signal = 0;
+  std::vector<Eigen::Vector3d> weights(k, Eigen::Vector3d::Zero());
+  for (int c = 0; c < 3; ++c) {
+    Eigen::MatrixXd A = Eigen::MatrixXd::Zero(k, k);
+    Eigen::VectorXd b = Eigen::VectorXd::Zero(k);
+    for (const auto& p : used) {
+      Eigen::VectorXd r(k);
+      for (int i = 0; i < k; ++i) r[i] = basis[i].at<cv::Vec3f>(p)[c];
+      A += r * r.transpose();
+      b += r * static_cast<double>(fit_photo.at<cv::Vec3f>(p)[c]);
+    }
+    const double scale = std::max(A.diagonal().maxCoeff(), 1e-12);
+    Eigen::VectorXd w = Eigen::VectorXd::Zero(k);
+    int it = 0;
+    bool done = false;
+    for (; it < options.max_fit_iterations && !done; ++it) {
+      double change = 0, size = 0;
+      for (int i = 0; i < k; ++i) {
+        if (A(i, i) <= 1e-12 * scale) continue;  // a light that lights nothing stays off
+        const double rest = b[i] - A.row(i).dot(w) + A(i, i) * w[i];
+        const double updated = std::max(0.0, (rest - options.sparsity * scale) / A(i, i));
+        change = std::max(change, std::abs(updated - w[i]));
+        size = std::max(size, std::abs(updated));
+        w[i] = updated;
+      }
+      done = change <= options.fit_tolerance * std::max(size, 1e-12);
+    }
+    max_iterations_used = std::max(max_iterations_used, it);
+    converged = converged && done;
+    for (int i = 0; i < k; ++i) weights[i][c] = w[i];
+    for (const auto& p : used) {
+      double predicted = 0;
+      for (int i = 0; i < k; ++i) predicted += w[i] * basis[i].at<cv::Vec3f>(p)[c];
+      const double observed = fit_photo.at<cv::Vec3f>(p)[c];
+      residual += (observed - predicted) * (observed - predicted);
+      signal += observed * observed;
+    }
+  }
+  bool any_light = false;
+  for (int i = 0; i < k; ++i) {
+    out.lights[i].intensity = weights[i];
+    any_light = any_light || weights[i].maxCoeff() > 0;
+  }
+  if (!any_light && !out.lights.empty()) {
+    // A black photo or a fit that switched everything off: keep a dim
+    // environment so the prop is still visible rather than pure black.
+    out.lights.back().intensity = Eigen::Vector3d::Constant(1.0);
+  }
+  StageReport fit;
+  fit.stage = "light_intensities";
+  fit.usable = !used.empty() && any_light;
+  fit.why = used.empty() ? "no unclipped pixels to fit" : (any_light ? "fitted to basis renders" : "no light explains the photo");
+  fit.iterations = max_iterations_used;
+  fit.seconds = seconds_since(start);
+  fit.error = signal > 0 ? std::sqrt(residual / signal) : 0.0;  // relative RMS of the re-render
+  fit.details = {{"basis_renders", k}, {"resolution", {fit_w, fit_h}}, {"samples_per_pixel", settings.samples_per_pixel},
+                 {"converged", converged}, {"pixels", used.size()}};
+  out.reports.push_back(fit);
+  return out;
+}
+
+}  // namespace propcam::inference

@@ -1,0 +1,234 @@
+#include "propcam/inference/scene_model.h"
+
+#include <filesystem>
+#include <fstream>
+#include <stdexcept>
+
+#include "propcam/capture/image_file.h"
+
+namespace propcam::inference {
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+json vec(const Eigen::Vector3d& v) { return json::array({v.x(), v.y(), v.z()}); }
+
+Eigen::Vector3d vec3(const json& j, const char* what) {
+  if (!j.is_array() || j.size() != 3) throw std::runtime_error(std::string("scene.json: ") + what + " is not [x,y,z]");
+  return {j[0].get<double>(), j[1].get<double>(), j[2].get<double>()};
+}
+
+LightSource::Type light_type_from_string(const std::string& s) {
+  if (s == "area") return LightSource::Type::Area;
+  if (s == "point") return LightSource::Type::Point;
+  if (s == "sun") return LightSource::Type::Sun;
+  if (s == "ibl") return LightSource::Type::Ibl;
+  throw std::runtime_error("scene.json: unknown light type '" + s + "'");
+}
+
+void check_finite(const cv::Mat& m, const char* what) {
+  if (!m.empty() && !cv::checkRange(m)) throw std::runtime_error(std::string("scene model: non-finite ") + what);
+}
+
+}  // namespace
+
+const char* to_string(LightSource::Type type) {
+  switch (type) {
+    case LightSource::Type::Area: return "area";
+    case LightSource::Type::Point: return "point";
+    case LightSource::Type::Sun: return "sun";
+    case LightSource::Type::Ibl: return "ibl";
+  }
+  return "area";
+}
+
+json to_json(const StageReport& r) {
+  json j = {{"stage", r.stage}, {"usable", r.usable}, {"why", r.why}, {"iterations", r.iterations},
+            {"seconds", r.seconds}};
+  if (r.error >= 0) j["error"] = r.error;
+  if (!r.details.empty()) j["details"] = r.details;
+  return j;
+}
+
+render::PinholeCamera SceneModel::camera() const {
+  render::PinholeCamera cam;
+  cam.width = width;
+  cam.height = height;
+  cam.fx = fx;
+  cam.fy = fy;
+  cam.cx = cx;
+  cam.cy = cy;
+  cam.R_world_from_cam = R_world_from_cam;
+  cam.center_world = {0.0, camera_height_m, 0.0};
+  return cam;
+}
+
+render::LightRig SceneModel::light_rig() const {
+  render::LightRig rig;
+  for (const LightSource& l : lights) {
+    const Eigen::Vector3f intensity = l.intensity.cast<float>();
+    if (l.type == LightSource::Type::Area) {
+      render::AreaLight a;
+      a.corner = l.corner.cast<float>();
+      a.edge_u = l.edge_u.cast<float>();
+      a.edge_v = l.edge_v.cast<float>();
+      a.radiance = intensity;
+      rig.area_lights.push_back(a);
+    } else if (l.type == LightSource::Type::Ibl && !l.environment.empty()) {
+      rig.environment = std::make_shared<render::EnvironmentLight>(l.environment, intensity);
+    }
+  }
+  return rig;
+}
+
+void SceneModel::validate() const {
+  if (width <= 0 || height <= 0) throw std::runtime_error("scene model: no image size");
+  for (double v : {fx, fy, cx, cy, camera_height_m, gamma})
+    if (!std::isfinite(v)) throw std::runtime_error("scene model: non-finite camera number");
+  if (!(fx > 0 && fy > 0)) throw std::runtime_error("scene model: focal length must be positive");
+  if (!R_world_from_cam.allFinite()) throw std::runtime_error("scene model: non-finite rotation");
+  for (const cv::Mat* m : {&depth, &albedo, &normals})
+    if (!m->empty() && (m->cols != width || m->rows != height))
+      throw std::runtime_error("scene model: a map's size differs from the image size");
+  check_finite(depth, "depth");
+  check_finite(albedo, "albedo");
+  check_finite(normals, "normals");
+  for (const auto& l : lights)
+    if (!l.intensity.allFinite() || !l.position.allFinite() || !l.corner.allFinite())
+      throw std::runtime_error("scene model: non-finite light");
+}
+
+void save_scene(const SceneModel& scene, const std::string& folder) {
+  scene.validate();
+  fs::create_directories(fs::path(folder) / "lights");
+  json j;
+  j["format"] = "propcam-scene/1";
+  j["image"] = {{"width", scene.width}, {"height", scene.height}};
+  j["K"] = {{"fx", scene.fx}, {"fy", scene.fy}, {"cx", scene.cx}, {"cy", scene.cy}};
+  json rot = json::array();
+  for (int r = 0; r < 3; ++r)
+    rot.push_back({scene.R_world_from_cam(r, 0), scene.R_world_from_cam(r, 1), scene.R_world_from_cam(r, 2)});
+  j["R_world_from_cam"] = rot;
+  j["camera_height_m"] = scene.camera_height_m;
+  j["gamma"] = scene.gamma;
+  j["indoor"] = scene.indoor;
+  j["source_photo"] = scene.source_photo;
+  json lights = json::array();
+  int ibl_index = 0;
+  for (const auto& l : scene.lights) {
+    json lj = {{"type", to_string(l.type)}, {"intensity", vec(l.intensity)}};
+    switch (l.type) {
+      case LightSource::Type::Area:
+        lj["position"] = vec(l.position);
+        lj["corner"] = vec(l.corner);
+        lj["edge_u"] = vec(l.edge_u);
+        lj["edge_v"] = vec(l.edge_v);
+        break;
+      case LightSource::Type::Point: lj["position"] = vec(l.position); break;
+      case LightSource::Type::Sun: lj["direction"] = vec(l.direction); break;
+      case LightSource::Type::Ibl: {
+        const std::string file = l.file.empty() ? "lights/environment_" + std::to_string(ibl_index++) + ".exr" : l.file;
+        capture::write_image((fs::path(folder) / file).string(), l.environment);
+        lj["file"] = file;
+        break;
+      }
+    }
+    lights.push_back(lj);
+  }
+  j["lights"] = lights;
+  json planes = json::array();
+  for (const auto& p : scene.planes) planes.push_back({{"name", p.name}, {"normal", vec(p.normal)}, {"offset", p.offset}});
+  j["planes"] = planes;
+  json reports = json::array();
+  for (const auto& r : scene.reports) reports.push_back(to_json(r));
+  j["reports"] = reports;
+  const fs::path dir(folder);
+  if (!scene.depth.empty()) capture::write_image((dir / "depth.exr").string(), scene.depth);
+  if (!scene.albedo.empty()) capture::write_image((dir / "albedo.exr").string(), scene.albedo);
+  if (!scene.normals.empty()) capture::write_image((dir / "normals.exr").string(), scene.normals);
+  // scene.json last and atomically: a folder with scene.json is complete.
+  const fs::path tmp = dir / ".scene.json.tmp";
+  {
+    std::ofstream out(tmp);
+    out << j.dump(2) << "\n";
+    if (!out) throw std::runtime_error("cannot write " + tmp.string());
+  }
+  fs::rename(tmp, dir / "scene.json");
+}
+
+SceneModel load_scene(const std::string& folder) {
+  const fs::path dir(folder);
+  std::ifstream in(dir / "scene.json");
+  if (!in) throw std::runtime_error("no scene.json in '" + folder + "'");
+  json j;
+  try {
+    in >> j;
+  } catch (const json::exception& e) {
+    throw std::runtime_error("cannot parse " + (dir / "scene.json").string() + ": " + e.what());
+  }
+  SceneModel s;
+  try {
+    s.width = j.at("image").at("width");
+    s.height = j.at("image").at("height");
+    s.fx = j.at("K").at("fx");
+    s.fy = j.at("K").at("fy");
+    s.cx = j.at("K").at("cx");
+    s.cy = j.at("K").at("cy");
+    const json& rot = j.at("R_world_from_cam");
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) s.R_world_from_cam(r, c) = rot.at(r).at(c);
+    s.camera_height_m = j.at("camera_height_m");
+    s.gamma = j.value("gamma", 2.2);
+    s.indoor = j.value("indoor", true);
+    s.source_photo = j.value("source_photo", "");
+    for (const json& lj : j.at("lights")) {
+      LightSource l;
+      l.type = light_type_from_string(lj.at("type"));
+      l.intensity = vec3(lj.at("intensity"), "intensity");
+      if (lj.contains("position")) l.position = vec3(lj["position"], "position");
+      if (lj.contains("direction")) l.direction = vec3(lj["direction"], "direction");
+      if (l.type == LightSource::Type::Area) {
+        l.corner = vec3(lj.at("corner"), "corner");
+        l.edge_u = vec3(lj.at("edge_u"), "edge_u");
+        l.edge_v = vec3(lj.at("edge_v"), "edge_v");
+      }
+      if (l.type == LightSource::Type::Ibl) {
+        l.file = lj.at("file");
+        cv::Mat env = capture::read_image_float((dir / l.file).string());
+        if (env.channels() != 3) throw std::runtime_error("environment map must have 3 channels");
+        l.environment = env;
+      }
+      s.lights.push_back(l);
+    }
+    for (const json& pj : j.value("planes", json::array()))
+      s.planes.push_back({pj.at("name"), vec3(pj.at("normal"), "normal"), pj.at("offset")});
+    for (const json& rj : j.value("reports", json::array())) {
+      StageReport r;
+      r.stage = rj.value("stage", "");
+      r.usable = rj.value("usable", true);
+      r.why = rj.value("why", "");
+      r.iterations = rj.value("iterations", 0);
+      r.seconds = rj.value("seconds", 0.0);
+      r.error = rj.value("error", -1.0);
+      r.details = rj.value("details", json::object());
+      s.reports.push_back(r);
+    }
+  } catch (const json::exception& e) {
+    throw std::runtime_error("bad scene.json in '" + folder + "': " + e.what());
+  }
+  auto load_map = [&](const char* name, int channels) {
+    const fs::path p = dir / name;
+    if (!fs::exists(p)) return cv::Mat();
+    cv::Mat m = capture::read_image_float(p.string());
+    if (m.channels() != channels) throw std::runtime_error(p.string() + " has the wrong channel count");
+    return m;
+  };
+  s.depth = load_map("depth.exr", 1);
+  s.albedo = load_map("albedo.exr", 3);
+  s.normals = load_map("normals.exr", 3);
+  s.validate();
+  return s;
+}
+
+}  // namespace propcam::inference

@@ -1,0 +1,33 @@
+// Pinhole camera in the OpenCV convention (x right, y down, z forward; pixel
+// (0,0) is the centre of the top-left pixel) placed in a gravity-aligned world
+// (Y up, metres).
+#pragma once
+
+#include <Eigen/Core>
+
+namespace propcam::render {
+
+struct PinholeCamera {
+  int width = 0;
+  int height = 0;
+  double fx = 1.0, fy = 1.0, cx = 0.0, cy = 0.0;
+  Eigen::Matrix3d R_world_from_cam = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d center_world = Eigen::Vector3d::Zero();
+
+  // Unit direction in world coordinates through continuous pixel position (u, v).
+  Eigen::Vector3d ray_direction(double u, double v) const {
+    return (R_world_from_cam * Eigen::Vector3d((u - cx) / fx, (v - cy) / fy, 1.0)).normalized();
+  }
+  Eigen::Vector3d world_to_camera(const Eigen::Vector3d& p) const {
+    return R_world_from_cam.transpose() * (p - center_world);
+  }
+  // Projects a world point; returns false if it lies behind the camera.
+  bool project(const Eigen::Vector3d& p_world, Eigen::Vector2d& pixel) const {
+    const Eigen::Vector3d pc = world_to_camera(p_world);
+    if (pc.z() <= 1e-9) return false;
+    pixel = {fx * pc.x() / pc.z() + cx, fy * pc.y() / pc.z() + cy};
+    return true;
+  }
+};
+
+}  // namespace propcam::render

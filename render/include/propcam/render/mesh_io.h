@@ -1,0 +1,35 @@
+// Mesh files: Wavefront OBJ with its MTL materials, in and out.
+//
+// MTL -> Material mapping (the inverse is used when saving):
+//   Ke non-zero                       -> Emissive (emission = Ke, albedo = Kd)
+//   illum 3, or Ks bright and Kd dark -> Metal    (albedo = Ks, roughness from Ns)
+//   Ks non-zero                       -> Glossy   (albedo = Kd, specular = max(Ks),
+//                                                  roughness alpha = sqrt(2 / (Ns + 2)))
+//   otherwise                         -> Diffuse  (albedo = Kd)
+//   map_Kd                            -> texture (sRGB file -> linear RGB CV_32FC3),
+//                                        path relative to the .mtl file's folder
+// Mesh uvs follow the renderer's image convention (v down: row = v * rows);
+// the OBJ's v-up texture coordinates are flipped on load and on save.
+#pragma once
+
+#include <string>
+
+#include "propcam/render/mesh.h"
+
+namespace propcam::render {
+
+// Loads an .obj file and the .mtl files it names. Polygons are triangulated and
+// corners with different position/uv/normal index triples become separate
+// vertices. Missing normals are computed (smooth, split at creases sharper than
+// 60 degrees); faces without a material get a default grey diffuse one.
+// Throws std::runtime_error naming the file when it is missing, unparsable,
+// holds no triangles or non-finite numbers, or a texture cannot be read.
+Mesh load_mesh_file(const std::string& path);
+
+// Writes `path` (.obj) and a sibling .mtl (same stem), plus one PNG per textured
+// material. Each file is written under a temporary name and renamed into place,
+// the .obj last, so readers never see a partial file.
+// Throws std::runtime_error naming the file on failure.
+void save_obj(const Mesh& mesh, const std::string& path);
+
+}  // namespace propcam::render

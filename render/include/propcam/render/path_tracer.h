@@ -1,0 +1,62 @@
+// CPU path tracer on Embree: next-event estimation for area lights, MIS
+// between BSDF and environment sampling, Russian roulette, and the one-pass
+// differential render (I_obj and I_noobj from shared random numbers).
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <opencv2/core.hpp>
+
+#include "propcam/render/camera.h"
+#include "propcam/render/lights.h"
+#include "propcam/render/scene.h"
+
+namespace propcam::render {
+
+struct RenderSettings {
+  int samples_per_pixel = 16;
+  int max_bounces = 4;      // scattering events after the camera hit (the paper allows 16)
+  uint64_t seed = 0x5eed;   // the same seed gives the same image
+  int threads = 0;          // 0: all hardware threads
+  int tile_size = 32;
+  // Called from worker threads with the finished fraction in [0,1].
+  std::function<void(double)> progress;
+};
+
+struct RenderStats {
+  double seconds = 0.0;
+  uint64_t camera_samples = 0;
+  uint64_t rays = 0;                 // closest-hit and shadow rays
+  uint64_t paths_without_prop = 0;   // second paths traced for I_noobj
+  uint64_t paths_prop_untouched = 0; // samples whose I_noobj path was skipped (identical to I_obj)
+};
+
+// Ground-truth buffers from one centred camera ray per pixel.
+struct PrimaryBuffers {
+  cv::Mat depth;   // CV_32F, metres along camera z; 0 where nothing was hit
+  cv::Mat albedo;  // CV_32FC3 linear
+  cv::Mat normal;  // CV_32FC3 world-space unit normal
+  cv::Mat prop_coverage;  // CV_8U, 255 where a prop is seen
+};
+
+// Renders the scene (with its props) as the camera sees it. Linear RGB CV_32FC3.
+cv::Mat render_image(const Scene& scene, const PinholeCamera& camera, const LightRig& lights,
+                     const RenderSettings& settings, RenderStats* stats = nullptr);
+
+PrimaryBuffers render_primary_buffers(const Scene& scene, const PinholeCamera& camera, bool with_props);
+
+// The prop's effect on the photo, from one set of shared samples.
+struct DifferentialRender {
+  cv::Mat coverage;  // CV_32F, M: fraction of camera samples that see a prop
+  cv::Mat change;    // CV_32FC3, mean over samples of (prop seen ? I_obj : I_obj - I_noobj)
+  RenderStats stats;
+};
+
+DifferentialRender render_differential(const Scene& scene, const PinholeCamera& camera, const LightRig& lights,
+                                       const RenderSettings& settings);
+
+// Debevec's additive differential compositing, per sample:
+// I_final = M*I_obj + (1-M)*(I_b + I_obj - I_noobj), clamped at 0.
+cv::Mat composite_differential(const cv::Mat& photo_linear, const DifferentialRender& render);
+
+}  // namespace propcam::render

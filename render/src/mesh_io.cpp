@@ -1,0 +1,551 @@
+#include "propcam/render/mesh_io.h"
+
+#include <fcntl.h>
+#include <tiny_obj_loader.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <cctype>
+#include <cerrno>
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <set>
+#include <stdexcept>
+#include <unordered_map>
+#include <utility>
+
+#include <opencv2/imgcodecs.hpp>
+
+namespace propcam::render {
+namespace {
+
+namespace fs = std::filesystem;
+using Eigen::Vector2f;
+using Eigen::Vector3f;
+
+[[noreturn]] void fail(const std::string& file, const std::string& what) {
+  throw std::runtime_error("mesh file '" + file + "': " + what);
+}
+
+std::string trim(std::string text) {
+  while (!text.empty() && std::isspace(static_cast<unsigned char>(text.back()))) text.pop_back();
+  return text;
+}
+
+Vector3f clamp01(const Vector3f& v) { return v.cwiseMax(0.f).cwiseMin(1.f); }
+
+// GGX alpha <-> Phong exponent, the usual Blinn-Phong/Beckmann correspondence.
+float roughness_from_shininess(float ns) { return std::clamp(std::sqrt(2.f / (std::max(ns, 0.f) + 2.f)), 0.02f, 1.f); }
+float shininess_from_roughness(float alpha) {
+  const float a = std::clamp(alpha, 0.02f, 1.f);
+  return 2.f / (a * a) - 2.f;
+}
+
+float srgb_to_linear(float encoded) {
+  return encoded <= 0.04045f ? encoded / 12.92f : std::pow((encoded + 0.055f) / 1.055f, 2.4f);
+}
+float linear_to_srgb(float linear) {
+  const float c = std::clamp(linear, 0.f, 1.f);
+  return c <= 0.0031308f ? 12.92f * c : 1.055f * std::pow(c, 1.f / 2.4f) - 0.055f;
+}
+
+// 8-bit sRGB BGR (as cv::imread returns it) -> linear RGB CV_32FC3.
+cv::Mat bgr8_srgb_to_linear_rgb(const cv::Mat& bgr) {
+  std::array<float, 256> lut;
+  for (int i = 0; i < 256; ++i) lut[i] = srgb_to_linear(static_cast<float>(i) / 255.f);
+  cv::Mat rgb(bgr.rows, bgr.cols, CV_32FC3);
+  for (int y = 0; y < bgr.rows; ++y) {
+    const auto* src = bgr.ptr<cv::Vec3b>(y);
+    auto* dst = rgb.ptr<cv::Vec3f>(y);
+    for (int x = 0; x < bgr.cols; ++x) dst[x] = cv::Vec3f(lut[src[x][2]], lut[src[x][1]], lut[src[x][0]]);
+  }
+  return rgb;
+}
+
+cv::Mat linear_rgb_to_bgr8_srgb(const cv::Mat& rgb) {
+  cv::Mat bgr(rgb.rows, rgb.cols, CV_8UC3);
+  for (int y = 0; y < rgb.rows; ++y) {
+    const auto* src = rgb.ptr<cv::Vec3f>(y);
+    auto* dst = bgr.ptr<cv::Vec3b>(y);
+    for (int x = 0; x < rgb.cols; ++x)
+      for (int c = 0; c < 3; ++c) dst[x][2 - c] = static_cast<uchar>(std::lround(255.f * linear_to_srgb(src[x][c])));
+  }
+  return bgr;
+}
+
+// ---------------------------------------------------------------------------
+// Loading
+
+// Opens .mtl files next to the .obj and remembers which file each material
+// came from, because texture paths are relative to their .mtl.
+class MtlFileReader : public tinyobj::MaterialReader {
+ public:
+  explicit MtlFileReader(fs::path obj_folder) : obj_folder_(std::move(obj_folder)) {}
+
+  bool operator()(const std::string& mtl_name, std::vector<tinyobj::material_t>* materials,
+                  std::map<std::string, int>* material_map, std::string* warn, std::string* err) override {
+    std::string portable = mtl_name;
+    std::replace(portable.begin(), portable.end(), '\\', '/');  // files written on Windows
+    const fs::path mtl_path = obj_folder_ / portable;
+    std::ifstream in(mtl_path);
+    if (!in) {
+      if (warn) *warn += "material file '" + mtl_path.string() + "' not found\n";
+      return false;
+    }
+    tinyobj::LoadMtl(material_map, materials, &in, warn, err);
+    source_files_.resize(materials->size(), mtl_path);
+    return true;
+  }
+
+  fs::path mtl_folder(int material) const {
+    return material < static_cast<int>(source_files_.size()) ? source_files_[material].parent_path() : obj_folder_;
+  }
+
+ private:
+  fs::path obj_folder_;
+  std::vector<fs::path> source_files_;  // per material index
+};
+
+class TextureCache {
+ public:
+  explicit TextureCache(std::string obj_path) : obj_path_(std::move(obj_path)) {}
+
+  std::shared_ptr<const cv::Mat> load(const std::string& name, const fs::path& mtl_folder,
+                                      const std::string& material) {
+    std::string portable = name;
+    std::replace(portable.begin(), portable.end(), '\\', '/');
+    const fs::path given(portable);
+    // Exported files often carry the artist's absolute path; fall back to the bare file name.
+    const fs::path candidates[] = {given.is_absolute() ? given : mtl_folder / given, mtl_folder / given.filename()};
+    for (const auto& candidate : candidates) {
+      std::error_code ec;
+      if (!fs::is_regular_file(candidate, ec)) continue;
+      const std::string key = candidate.lexically_normal().string();
+      if (auto it = cache_.find(key); it != cache_.end()) return it->second;
+      const cv::Mat bgr = cv::imread(key, cv::IMREAD_COLOR);
+      if (bgr.empty()) fail(obj_path_, "cannot decode texture '" + key + "' of material '" + material + "'");
+      auto texture = std::make_shared<const cv::Mat>(bgr8_srgb_to_linear_rgb(bgr));
+      cache_.emplace(key, texture);
+      return texture;
+    }
+    fail(obj_path_, "texture '" + name + "' of material '" + material + "' not found (looked for '" +
+                        candidates[0].string() + "')");
+  }
+
+ private:
+  std::string obj_path_;
+  std::map<std::string, std::shared_ptr<const cv::Mat>> cache_;
+};
+
+Material convert_material(const tinyobj::material_t& mtl, const fs::path& mtl_folder, TextureCache& textures) {
+  const Vector3f kd = clamp01(Vector3f(mtl.diffuse[0], mtl.diffuse[1], mtl.diffuse[2]));
+  const Vector3f ks = clamp01(Vector3f(mtl.specular[0], mtl.specular[1], mtl.specular[2]));
+  const Vector3f ke = Vector3f(mtl.emission[0], mtl.emission[1], mtl.emission[2]).cwiseMax(0.f);
+  Material m;
+  m.name = mtl.name;
+  m.roughness = roughness_from_shininess(mtl.shininess);
+  m.albedo = kd;
+  if (ke.maxCoeff() > 0.f) {
+    m.type = Material::Type::Emissive;
+    m.emission = ke;
+  } else if (mtl.illum == 3 || (ks.maxCoeff() >= 0.5f && kd.maxCoeff() <= 0.1f)) {
+    m.type = Material::Type::Metal;
+    m.albedo = ks.maxCoeff() > 0.f ? ks : kd;  // illum 3 with black Ks: a black mirror is never meant
+  } else if (ks.maxCoeff() > 0.f) {
+    m.type = Material::Type::Glossy;
+    m.specular = ks.maxCoeff();
+  } else {
+    m.type = Material::Type::Diffuse;
+  }
+  if (!mtl.diffuse_texname.empty()) {
+    m.texture = textures.load(mtl.diffuse_texname, mtl_folder, mtl.name);
+    // The texture multiplies albedo; a black Kd next to a map_Kd means "not set".
+    if (m.type != Material::Type::Metal && m.albedo.isZero()) m.albedo = Vector3f::Ones();
+  }
+  return m;
+}
+
+Material default_material() {
+  Material m;
+  m.type = Material::Type::Diffuse;
+  m.name = "default_grey";
+  m.albedo = Vector3f::Constant(0.5f);
+  return m;
+}
+
+struct ObjCorner {
+  int position, uv, normal;  // OBJ indices, -1 when absent
+};
+
+// Key of an output vertex: the OBJ index triple, plus the computed normal when
+// the file has none (its bits, since equal inputs give identical sums).
+struct VertexKey {
+  std::array<std::uint32_t, 6> words;
+  bool operator==(const VertexKey&) const = default;
+};
+struct VertexKeyHash {
+  std::size_t operator()(const VertexKey& key) const {
+    std::uint64_t h = 1469598103934665603ull;
+    for (std::uint32_t w : key.words) h = (h ^ w) * 1099511628211ull;
+    return static_cast<std::size_t>(h);
+  }
+};
+
+std::uint32_t float_bits(float f) {
+  std::uint32_t bits;
+  std::memcpy(&bits, &f, sizeof bits);
+  return bits;
+}
+
+// ---------------------------------------------------------------------------
+// Saving
+
+std::string sanitized_name(const std::string& name) {
+  std::string out;
+  for (const char c : name)
+    out += (std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.') ? c : '_';
+  return out;
+}
+
+void append_number(std::string& out, float value) {
+  char buffer[32];
+  const auto result = std::to_chars(buffer, buffer + sizeof buffer, value);  // shortest exact round trip
+  out.append(buffer, result.ptr);
+}
+
+void append_vector(std::string& out, const char* tag, const float* values, int count) {
+  out += tag;
+  for (int i = 0; i < count; ++i) {
+    out += ' ';
+    append_number(out, values[i]);
+  }
+  out += '\n';
+}
+
+void fsync_file(const fs::path& path, const std::string& file_for_errors) {
+  const int fd = ::open(path.c_str(), O_RDONLY);
+  if (fd < 0 || ::fsync(fd) != 0) {
+    const std::string reason = std::strerror(errno);
+    if (fd >= 0) ::close(fd);
+    fail(file_for_errors, "cannot flush '" + path.string() + "': " + reason);
+  }
+  ::close(fd);
+}
+
+void write_text_file(const fs::path& path, const std::string& text, const std::string& file_for_errors) {
+  {
+    std::ofstream out(path, std::ios::binary | std::ios::trunc);
+    if (!out) fail(file_for_errors, "cannot create '" + path.string() + "': " + std::strerror(errno));
+    out.write(text.data(), static_cast<std::streamsize>(text.size()));
+    out.close();
+    if (!out) fail(file_for_errors, "cannot write '" + path.string() + "'");
+  }
+  fsync_file(path, file_for_errors);  // data on disk before the rename makes it visible
+}
+
+// Temporary files that are renamed into place together, or removed.
+class StagedFiles {
+ public:
+  explicit StagedFiles(std::string file_for_errors) : file_for_errors_(std::move(file_for_errors)) {}
+  StagedFiles(const StagedFiles&) = delete;
+  StagedFiles& operator=(const StagedFiles&) = delete;
+  ~StagedFiles() {
+    std::error_code ignored;
+    for (const auto& [temp, final_path] : staged_) fs::remove(temp, ignored);
+  }
+
+  // Temporary name in the destination folder (rename stays atomic), keeping the
+  // extension so encoders that go by it still work.
+  fs::path stage(const fs::path& final_path) {
+    static std::atomic<unsigned> counter{0};
+    fs::path temp = final_path;
+    temp.replace_filename(final_path.stem().string() + ".tmp-" + std::to_string(::getpid()) + "-" +
+                          std::to_string(counter++) + final_path.extension().string());
+    staged_.emplace_back(temp, final_path);
+    return temp;
+  }
+
+  // Renames in staging order, so stage the file that names the others last.
+  void commit() {
+    for (auto& [temp, final_path] : staged_) {
+      std::error_code ec;
+      fs::rename(temp, final_path, ec);
+      if (ec)
+        fail(file_for_errors_,
+             "cannot rename '" + temp.string() + "' to '" + final_path.string() + "': " + ec.message());
+      temp.clear();
+    }
+  }
+
+ private:
+  std::string file_for_errors_;
+  std::vector<std::pair<fs::path, fs::path>> staged_;
+};
+
+}  // namespace
+
+Mesh load_mesh_file(const std::string& path) {
+  const fs::path file(path);
+  std::error_code ec;
+  if (!fs::exists(file, ec)) fail(path, "no such file");
+  if (!fs::is_regular_file(file, ec)) fail(path, "not a regular file");
+  std::string extension = file.extension().string();
+  std::transform(extension.begin(), extension.end(), extension.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  if (extension != ".obj") fail(path, "unsupported format '" + extension + "' (expected .obj)");
+  std::ifstream in(file, std::ios::binary);
+  if (!in) fail(path, std::string("cannot open: ") + std::strerror(errno));
+
+  tinyobj::attrib_t attrib;
+  std::vector<tinyobj::shape_t> shapes;
+  std::vector<tinyobj::material_t> obj_materials;
+  std::string warnings, errors;
+  MtlFileReader mtl_reader(file.parent_path());
+  if (!tinyobj::LoadObj(&attrib, &shapes, &obj_materials, &warnings, &errors, &in, &mtl_reader,
+                        /*triangulate=*/true, /*default_vcols_fallback=*/false))
+    fail(path, "parse error: " + trim(errors));
+
+  const auto all_finite = [](const std::vector<tinyobj::real_t>& values) {
+    return std::all_of(values.begin(), values.end(), [](tinyobj::real_t v) { return std::isfinite(v); });
+  };
+  if (!all_finite(attrib.vertices)) fail(path, "non-finite vertex position");
+  if (!all_finite(attrib.normals)) fail(path, "non-finite vertex normal");
+  if (!all_finite(attrib.texcoords)) fail(path, "non-finite texture coordinate");
+  const int position_count = static_cast<int>(attrib.vertices.size() / 3);
+  const int normal_count = static_cast<int>(attrib.normals.size() / 3);
+  const int uv_count = static_cast<int>(attrib.texcoords.size() / 2);
+  const auto obj_position = [&](int i) {
+    return Vector3f(attrib.vertices[3 * i], attrib.vertices[3 * i + 1], attrib.vertices[3 * i + 2]);
+  };
+  // Unit normal from the file, or zero when the corner has none (or a zero one).
+  const auto file_normal = [&](int i) {
+    if (i < 0) return Vector3f(Vector3f::Zero());
+    const Vector3f n(attrib.normals[3 * i], attrib.normals[3 * i + 1], attrib.normals[3 * i + 2]);
+    return n.norm() > 1e-12f ? Vector3f(n.normalized()) : Vector3f(Vector3f::Zero());
+  };
+
+  // Triangles as OBJ corners (fan-split anything tinyobjloader left as a polygon).
+  std::vector<std::array<ObjCorner, 3>> corners;
+  std::vector<int> obj_material_of;  // per triangle, -1 = none
+  for (const auto& shape : shapes) {
+    size_t first = 0;
+    for (size_t face = 0; face < shape.mesh.num_face_vertices.size(); ++face) {
+      const int count = shape.mesh.num_face_vertices[face];
+      const int material = face < shape.mesh.material_ids.size() ? shape.mesh.material_ids[face] : -1;
+      std::vector<ObjCorner> polygon;
+      for (int k = 0; k < count; ++k) {
+        const tinyobj::index_t& idx = shape.mesh.indices[first + k];
+        if (idx.vertex_index < 0 || idx.vertex_index >= position_count)
+          fail(path, "face refers to vertex " + std::to_string(idx.vertex_index + 1) + " but the file has " +
+                         std::to_string(position_count));
+        if (idx.normal_index >= normal_count)
+          fail(path, "face refers to normal " + std::to_string(idx.normal_index + 1) + " but the file has " +
+                         std::to_string(normal_count));
+        if (idx.texcoord_index >= uv_count)
+          fail(path, "face refers to texture coordinate " + std::to_string(idx.texcoord_index + 1) +
+                         " but the file has " + std::to_string(uv_count));
+        polygon.push_back({idx.vertex_index, std::max(idx.texcoord_index, -1), std::max(idx.normal_index, -1)});
+      }
+      for (int k = 1; k + 1 < count; ++k) {
+        corners.push_back({polygon[0], polygon[k], polygon[k + 1]});
+        obj_material_of.push_back(material < static_cast<int>(obj_materials.size()) ? material : -1);
+      }
+      first += count;
+    }
+  }
+  if (corners.empty()) fail(path, "no triangles (the file has no faces)");
+
+  // Face normals (length = 2 * area) and, per OBJ position, the triangles around it,
+  // for corners that need a computed normal.
+  const int triangle_count = static_cast<int>(corners.size());
+  std::vector<Vector3f> face_normal(triangle_count), face_direction(triangle_count);
+  std::vector<int> around_offsets(position_count + 1, 0), around;
+  bool needs_computed_normals = false;
+  for (int t = 0; t < triangle_count; ++t) {
+    const auto& c = corners[t];
+    const Vector3f p0 = obj_position(c[0].position);
+    face_normal[t] = (obj_position(c[1].position) - p0).cross(obj_position(c[2].position) - p0);
+    const float length = face_normal[t].norm();
+    face_direction[t] = length > 0.f ? Vector3f(face_normal[t] / length) : Vector3f::Zero();
+    for (const auto& corner : c) {
+      ++around_offsets[corner.position + 1];
+      needs_computed_normals = needs_computed_normals || file_normal(corner.normal).isZero();
+    }
+  }
+  if (needs_computed_normals) {
+    for (int i = 0; i < position_count; ++i) around_offsets[i + 1] += around_offsets[i];
+    around.resize(around_offsets.back());
+    std::vector<int> fill(around_offsets.begin(), around_offsets.end() - 1);
+    for (int t = 0; t < triangle_count; ++t)
+      for (const auto& corner : corners[t]) around[fill[corner.position]++] = t;
+  }
+  const float crease_cos = 0.5f;  // faces more than 60 degrees apart keep separate normals
+  const auto computed_normal = [&](int t, int position) {
+    Vector3f sum = Vector3f::Zero();
+    for (int k = around_offsets[position]; k < around_offsets[position + 1]; ++k) {
+      const int other = around[k];
+      if (face_direction[t].isZero() || face_direction[t].dot(face_direction[other]) >= crease_cos)
+        sum += face_normal[other];
+    }
+    const float length = sum.norm();
+    if (length > 0.f) return Vector3f(sum / length);
+    return face_direction[t].isZero() ? Vector3f(Vector3f::UnitY()) : face_direction[t];
+  };
+
+  Mesh mesh;
+  const bool has_uvs = std::any_of(corners.begin(), corners.end(),
+                                   [](const auto& c) { return c[0].uv >= 0 || c[1].uv >= 0 || c[2].uv >= 0; });
+  std::unordered_map<VertexKey, int, VertexKeyHash> vertex_of;
+  for (int t = 0; t < triangle_count; ++t) {
+    Eigen::Vector3i triangle;
+    for (int k = 0; k < 3; ++k) {
+      const ObjCorner& corner = corners[t][k];
+      const Vector3f from_file = file_normal(corner.normal);
+      const bool computed = from_file.isZero();
+      const Vector3f normal = computed ? computed_normal(t, corner.position) : from_file;
+      const VertexKey key{{static_cast<std::uint32_t>(corner.position), static_cast<std::uint32_t>(corner.uv),
+                           static_cast<std::uint32_t>(computed ? -1 : corner.normal),
+                           computed ? float_bits(normal.x()) : 0u, computed ? float_bits(normal.y()) : 0u,
+                           computed ? float_bits(normal.z()) : 0u}};
+      auto [it, inserted] = vertex_of.try_emplace(key, static_cast<int>(mesh.positions.size()));
+      if (inserted) {
+        mesh.positions.push_back(obj_position(corner.position));
+        mesh.normals.push_back(normal);
+        if (has_uvs)
+          mesh.uvs.push_back(corner.uv >= 0 ? Vector2f(attrib.texcoords[2 * corner.uv],
+                                                       1.f - attrib.texcoords[2 * corner.uv + 1])  // v up -> v down
+                                            : Vector2f::Zero());
+      }
+      triangle[k] = it->second;
+    }
+    mesh.triangles.push_back(triangle);
+  }
+
+  // Only the materials the faces use, in MTL order; the default one last.
+  std::set<int> used(obj_material_of.begin(), obj_material_of.end());
+  std::map<int, int> mesh_material_of;
+  TextureCache textures(path);
+  for (const int obj_id : used) {
+    if (obj_id < 0) continue;
+    mesh_material_of[obj_id] = static_cast<int>(mesh.materials.size());
+    mesh.materials.push_back(convert_material(obj_materials[obj_id], mtl_reader.mtl_folder(obj_id), textures));
+  }
+  if (used.count(-1)) {
+    mesh_material_of[-1] = static_cast<int>(mesh.materials.size());
+    mesh.materials.push_back(default_material());
+  }
+  for (const int obj_id : obj_material_of) mesh.material_ids.push_back(mesh_material_of[obj_id]);
+
+  try {
+    mesh.validate();
+  } catch (const std::exception& e) {
+    fail(path, e.what());
+  }
+  return mesh;
+}
+
+void save_obj(const Mesh& mesh, const std::string& path) {
+  try {
+    mesh.validate();
+  } catch (const std::exception& e) {
+    fail(path, std::string("cannot save an invalid mesh: ") + e.what());
+  }
+  if (mesh.empty()) fail(path, "cannot save a mesh without triangles");
+  const fs::path obj_path(path);
+  if (obj_path.filename().empty()) fail(path, "not a file name");
+  fs::path mtl_path = obj_path;
+  mtl_path.replace_extension(".mtl");
+  if (mtl_path == obj_path) fail(path, "an .obj path is needed (its .mtl goes next to it)");
+
+  // Unique names without whitespace, which would end the MTL token.
+  std::vector<std::string> names;
+  std::set<std::string> taken;
+  for (size_t i = 0; i < mesh.materials.size(); ++i) {
+    std::string base = sanitized_name(mesh.materials[i].name);
+    if (base.empty()) base = "material";
+    std::string name = base;
+    for (int suffix = 1; !taken.insert(name).second; ++suffix) name = base + "_" + std::to_string(suffix);
+    names.push_back(name);
+  }
+
+  StagedFiles staged(path);
+  std::string mtl = "# PropCam materials\n";
+  for (size_t i = 0; i < mesh.materials.size(); ++i) {
+    const Material& m = mesh.materials[i];
+    mtl += "\nnewmtl " + names[i] + "\n";
+    Vector3f kd = m.albedo, ks = Vector3f::Zero(), ke = Vector3f::Zero();
+    int illum = 1;
+    switch (m.type) {
+      case Material::Type::Diffuse: break;
+      case Material::Type::Glossy:
+        ks = Vector3f::Constant(std::max(m.specular, 1e-4f));  // Ks = 0 would read back as diffuse
+        illum = 2;
+        break;
+      case Material::Type::Metal:
+        kd = Vector3f::Zero();  // metals have no diffuse term; Ks carries the colour
+        ks = m.albedo;
+        illum = 3;
+        break;
+      case Material::Type::Emissive:
+        ke = m.emission.cwiseMax(1e-6f);  // Ke = 0 would read back as diffuse
+        break;
+    }
+    append_vector(mtl, "Kd", kd.data(), 3);
+    append_vector(mtl, "Ks", ks.data(), 3);
+    const float ns = shininess_from_roughness(m.roughness);
+    append_vector(mtl, "Ns", &ns, 1);
+    if (m.type == Material::Type::Emissive) append_vector(mtl, "Ke", ke.data(), 3);
+    mtl += "illum " + std::to_string(illum) + "\n";
+    if (m.texture && !m.texture->empty()) {
+      if (m.texture->type() != CV_32FC3) fail(path, "texture of material '" + m.name + "' is not CV_32FC3");
+      const fs::path texture_path =
+          obj_path.parent_path() / (sanitized_name(obj_path.stem().string()) + "_" + names[i] + ".png");
+      const fs::path temp = staged.stage(texture_path);
+      if (!cv::imwrite(temp.string(), linear_rgb_to_bgr8_srgb(*m.texture)))
+        fail(path, "cannot write texture '" + temp.string() + "'");
+      fsync_file(temp, path);
+      mtl += "map_Kd " + texture_path.filename().string() + "\n";
+    }
+  }
+  write_text_file(staged.stage(mtl_path), mtl, path);
+
+  std::string obj = "# PropCam mesh: " + std::to_string(mesh.positions.size()) + " vertices, " +
+                    std::to_string(mesh.triangles.size()) + " triangles\n";
+  std::string mtl_name = mtl_path.filename().string();
+  for (size_t at = 0; (at = mtl_name.find(' ', at)) != std::string::npos; at += 2) mtl_name.insert(at, "\\");
+  obj += "mtllib " + mtl_name + "\n";
+  obj.reserve(obj.size() + mesh.positions.size() * 96 + mesh.triangles.size() * 40);
+  for (const auto& p : mesh.positions) append_vector(obj, "v", p.data(), 3);
+  for (const auto& uv : mesh.uvs) {
+    const Vector2f obj_uv(uv.x(), 1.f - uv.y());  // OBJ's v runs up the image
+    append_vector(obj, "vt", obj_uv.data(), 2);
+  }
+  for (const auto& n : mesh.normals) append_vector(obj, "vn", n.data(), 3);
+  const bool has_uvs = !mesh.uvs.empty(), has_normals = !mesh.normals.empty();
+  int current_material = -1;
+  for (size_t t = 0; t < mesh.triangles.size(); ++t) {
+    if (mesh.material_ids[t] != current_material) {  // keeps the triangle order intact
+      current_material = mesh.material_ids[t];
+      obj += "usemtl " + names[current_material] + "\n";
+    }
+    obj += 'f';
+    for (int k = 0; k < 3; ++k) {
+      const std::string index = std::to_string(mesh.triangles[t][k] + 1);
+      obj += ' ' + index;
+      if (has_uvs || has_normals) obj += '/' + (has_uvs ? index : std::string());
+      if (has_normals) obj += '/' + index;
+    }
+    obj += '\n';
+  }
+  write_text_file(staged.stage(obj_path), obj, path);
+  staged.commit();
+}
+
+}  // namespace propcam::render

@@ -1,0 +1,179 @@
+#include "propcam/render/scene.h"
+
+#include <embree3/rtcore.h>
+
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+namespace propcam::render {
+namespace {
+
+// One error callback for the device instead of checking every call; it only
+// records (throwing through Embree's C frames is undefined), callers check.
+void embree_error(void* user, RTCError code, const char* message) {
+  auto* last_error = static_cast<std::string*>(user);
+  if (last_error->empty())
+    *last_error = "embree error " + std::to_string(static_cast<int>(code)) + ": " + (message ? message : "");
+}
+
+Eigen::Vector3f sample_texture(const cv::Mat& texture, const Eigen::Vector2f& uv) {
+  // Bilinear lookup with wrap-around (uv in texture space, v down).
+  const float fx = uv.x() * texture.cols - 0.5f;
+  const float fy = uv.y() * texture.rows - 0.5f;
+  const int x0 = static_cast<int>(std::floor(fx)), y0 = static_cast<int>(std::floor(fy));
+  const float ax = fx - x0, ay = fy - y0;
+  auto texel = [&](int x, int y) {
+    x = ((x % texture.cols) + texture.cols) % texture.cols;
+    y = ((y % texture.rows) + texture.rows) % texture.rows;
+    const cv::Vec3f c = texture.at<cv::Vec3f>(y, x);
+    return Eigen::Vector3f(c[0], c[1], c[2]);
+  };
+  return (1 - ay) * ((1 - ax) * texel(x0, y0) + ax * texel(x0 + 1, y0)) +
+         ay * ((1 - ax) * texel(x0, y0 + 1) + ax * texel(x0 + 1, y0 + 1));
+}
+
+}  // namespace
+
+struct Scene::EmbreeState {
+  RTCDevice device = nullptr;
+  RTCScene background = nullptr;  // background meshes only
+  RTCScene full = nullptr;        // background and props
+  std::string last_error;
+  void check(const char* where) {
+    if (!last_error.empty()) throw std::runtime_error(std::string(where) + ": " + last_error);
+  }
+  ~EmbreeState() {
+    if (background) rtcReleaseScene(background);
+    if (full) rtcReleaseScene(full);
+    if (device) rtcReleaseDevice(device);
+  }
+};
+
+Scene::Scene() : embree_(std::make_unique<EmbreeState>()) {
+  embree_->device = rtcNewDevice("threads=1");  // our own threads trace; no TBB pool
+  if (!embree_->device) throw std::runtime_error("cannot create Embree device");
+  rtcSetDeviceErrorFunction(embree_->device, embree_error, &embree_->last_error);
+  embree_->background = rtcNewScene(embree_->device);
+  embree_->full = rtcNewScene(embree_->device);
+  rtcSetSceneBuildQuality(embree_->background, RTC_BUILD_QUALITY_HIGH);
+  rtcSetSceneBuildQuality(embree_->full, RTC_BUILD_QUALITY_HIGH);
+}
+
+Scene::~Scene() = default;
+
+int Scene::add_mesh(Mesh mesh, Layer layer) {
+  if (committed_) throw std::logic_error("Scene::add_mesh after commit");
+  mesh.validate();
+  if (mesh.empty()) throw std::invalid_argument("Scene::add_mesh: mesh has no triangles");
+  const auto id = static_cast<unsigned>(meshes_.size());
+  RTCGeometry geometry = rtcNewGeometry(embree_->device, RTC_GEOMETRY_TYPE_TRIANGLE);
+  auto* vertices = static_cast<float*>(rtcSetNewGeometryBuffer(
+      geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), mesh.positions.size()));
+  for (size_t i = 0; i < mesh.positions.size(); ++i)
+    for (int k = 0; k < 3; ++k) vertices[3 * i + k] = mesh.positions[i][k];
+  auto* indices = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
+      geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), mesh.triangles.size()));
+  for (size_t i = 0; i < mesh.triangles.size(); ++i)
+    for (int k = 0; k < 3; ++k) indices[3 * i + k] = static_cast<unsigned>(mesh.triangles[i][k]);
+  rtcCommitGeometry(geometry);
+  // The same geometry id in both scenes, so a hit maps back to one mesh.
+  if (layer == Layer::Background) rtcAttachGeometryByID(embree_->background, geometry, id);
+  rtcAttachGeometryByID(embree_->full, geometry, id);
+  rtcReleaseGeometry(geometry);
+  bounds_.extend(mesh.bounds());
+  if (layer == Layer::Prop) ++prop_count_;
+  meshes_.push_back({std::move(mesh), layer});
+  embree_->check("Scene::add_mesh");
+  return static_cast<int>(id);
+}
+
+void Scene::commit() {
+  rtcCommitScene(embree_->background);
+  rtcCommitScene(embree_->full);
+  embree_->check("Scene::commit");
+  committed_ = true;
+}
+
+bool Scene::intersect(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction, float t_max,
+                      bool with_props, RayHit& hit) const {
+  RTCIntersectContext context;
+  rtcInitIntersectContext(&context);
+  RTCRayHit rh;
+  rh.ray.org_x = origin.x(); rh.ray.org_y = origin.y(); rh.ray.org_z = origin.z();
+  rh.ray.dir_x = direction.x(); rh.ray.dir_y = direction.y(); rh.ray.dir_z = direction.z();
+  rh.ray.tnear = 0.f;
+  rh.ray.tfar = t_max;
+  rh.ray.mask = 0xFFFFFFFFu;
+  rh.ray.flags = 0;
+  rh.ray.time = 0.f;
+  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  rtcIntersect1(with_props ? embree_->full : embree_->background, &context, &rh);
+  if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
+  hit.t = rh.ray.tfar;
+  hit.mesh = static_cast<int>(rh.hit.geomID);
+  hit.triangle = static_cast<int>(rh.hit.primID);
+  hit.u = rh.hit.u;
+  hit.v = rh.hit.v;
+  return true;
+}
+
+bool Scene::occluded(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction, float t_max,
+                     bool with_props) const {
+  RTCIntersectContext context;
+  rtcInitIntersectContext(&context);
+  RTCRay ray;
+  ray.org_x = origin.x(); ray.org_y = origin.y(); ray.org_z = origin.z();
+  ray.dir_x = direction.x(); ray.dir_y = direction.y(); ray.dir_z = direction.z();
+  ray.tnear = 0.f;
+  ray.tfar = t_max;
+  ray.mask = 0xFFFFFFFFu;
+  ray.flags = 0;
+  ray.time = 0.f;
+  rtcOccluded1(with_props ? embree_->full : embree_->background, &context, &ray);
+  return ray.tfar < 0.f;  // Embree sets tfar to -inf on occlusion
+}
+
+SurfacePoint Scene::surface(const RayHit& hit, const Eigen::Vector3f& origin,
+                            const Eigen::Vector3f& direction) const {
+  const Entry& entry = meshes_[hit.mesh];
+  const Mesh& mesh = entry.mesh;
+  const Eigen::Vector3i tri = mesh.triangles[hit.triangle];
+  const Eigen::Vector3f& p0 = mesh.positions[tri[0]];
+  const Eigen::Vector3f& p1 = mesh.positions[tri[1]];
+  const Eigen::Vector3f& p2 = mesh.positions[tri[2]];
+  const float w = 1.f - hit.u - hit.v;
+
+  SurfacePoint sp;
+  sp.layer = entry.layer;
+  sp.position = origin + hit.t * direction;
+  Eigen::Vector3f ng = (p1 - p0).cross(p2 - p0);
+  const float ng_len = ng.norm();
+  ng = ng_len > 0.f ? Eigen::Vector3f(ng / ng_len) : Eigen::Vector3f(-direction);
+  if (ng.dot(direction) > 0.f) ng = -ng;  // two-sided: face the viewer
+  sp.geometric_normal = ng;
+  Eigen::Vector3f ns = ng;
+  if (!mesh.normals.empty()) {
+    Eigen::Vector3f interpolated =
+        w * mesh.normals[tri[0]] + hit.u * mesh.normals[tri[1]] + hit.v * mesh.normals[tri[2]];
+    const float len = interpolated.norm();
+    if (len > 1e-6f) {
+      interpolated /= len;
+      if (interpolated.dot(ng) < 0.f) interpolated = -interpolated;
+      ns = interpolated;
+    }
+  }
+  sp.shading_normal = ns;
+  const Material& material = mesh.materials[mesh.material_ids[hit.triangle]];
+  sp.material = &material;
+  sp.albedo = material.albedo;
+  if (material.texture && !material.texture->empty() && !mesh.uvs.empty()) {
+    const Eigen::Vector2f uv = w * mesh.uvs[tri[0]] + hit.u * mesh.uvs[tri[1]] + hit.v * mesh.uvs[tri[2]];
+    sp.albedo = sp.albedo.cwiseProduct(sample_texture(*material.texture, uv));
+  }
+  return sp;
+}
+
+}  // namespace propcam::render

@@ -1,0 +1,188 @@
+#include "propcam/render/synthetic_room.h"
+
+#include <cmath>
+#include <numbers>
+#include <opencv2/imgproc.hpp>
+#include <random>
+
+namespace propcam::render {
+namespace {
+
+constexpr double kDegToRad = std::numbers::pi / 180.0;
+
+// Adds the quad a-b-c-d (counter-clockwise seen from the side it faces) with
+// uvs in metres divided by `metres_per_tile`.
+void add_quad(Mesh& mesh, const Eigen::Vector3f& a, const Eigen::Vector3f& b, const Eigen::Vector3f& c,
+              const Eigen::Vector3f& d, int material, float metres_per_tile) {
+  const int base = static_cast<int>(mesh.positions.size());
+  const Eigen::Vector3f eu = (b - a), ev = (d - a);
+  const float lu = eu.norm() / metres_per_tile, lv = ev.norm() / metres_per_tile;
+  mesh.positions.insert(mesh.positions.end(), {a, b, c, d});
+  mesh.uvs.insert(mesh.uvs.end(), {{0.f, lv}, {lu, lv}, {lu, 0.f}, {0.f, 0.f}});
+  mesh.triangles.emplace_back(base, base + 1, base + 2);
+  mesh.triangles.emplace_back(base, base + 2, base + 3);
+  mesh.material_ids.insert(mesh.material_ids.end(), {material, material});
+}
+
+// Axis-aligned box with outward faces (for furniture).
+void add_box(Mesh& mesh, const Eigen::Vector3f& lo, const Eigen::Vector3f& hi, int material) {
+  const float x0 = lo.x(), y0 = lo.y(), z0 = lo.z(), x1 = hi.x(), y1 = hi.y(), z1 = hi.z();
+  using V = Eigen::Vector3f;
+  add_quad(mesh, V(x0, y0, z1), V(x1, y0, z1), V(x1, y1, z1), V(x0, y1, z1), material, 1.f);  // +z
+  add_quad(mesh, V(x1, y0, z0), V(x0, y0, z0), V(x0, y1, z0), V(x1, y1, z0), material, 1.f);  // -z
+  add_quad(mesh, V(x1, y0, z1), V(x1, y0, z0), V(x1, y1, z0), V(x1, y1, z1), material, 1.f);  // +x
+  add_quad(mesh, V(x0, y0, z0), V(x0, y0, z1), V(x0, y1, z1), V(x0, y1, z0), material, 1.f);  // -x
+  add_quad(mesh, V(x0, y1, z1), V(x1, y1, z1), V(x1, y1, z0), V(x0, y1, z0), material, 1.f);  // +y
+}
+
+cv::Mat plank_texture(const cv::Vec3f& base, std::mt19937& rng) {
+  // 512 px = one tile; six planks with dark seams and slightly varied tone.
+  cv::Mat tex(512, 512, CV_32FC3);
+  std::uniform_real_distribution<float> tone(0.8f, 1.15f);
+  const int planks = 6;
+  std::vector<float> tones(planks);
+  for (auto& t : tones) t = tone(rng);
+  for (int y = 0; y < tex.rows; ++y)
+    for (int x = 0; x < tex.cols; ++x) {
+      const int plank = y * planks / tex.rows;
+      const bool seam = (y % (tex.rows / planks)) < 3;
+      const float grain = 0.92f + 0.08f * std::sin(x * 0.05f + plank * 1.7f + 3.f * std::sin(y * 0.02f));
+      const float k = seam ? 0.35f : tones[plank] * grain;
+      tex.at<cv::Vec3f>(y, x) = base * k;
+    }
+  return tex;
+}
+
+cv::Mat wall_texture(const cv::Vec3f& base, const cv::Vec3f& trim) {
+  // A wall with a skirting board and a picture rail: long horizontal edges
+  // give the vanishing-point stage lines, as real rooms do. One tile = 1 m
+  // horizontally; the texture is mapped with v = height.
+  cv::Mat tex(512, 128, CV_32FC3);
+  for (int y = 0; y < tex.rows; ++y) {
+    const float h = 3.f * (1.f - (y + 0.5f) / tex.rows);  // metres above floor over 3 m
+    cv::Vec3f c = base;
+    if (h < 0.12f || (h > 2.05f && h < 2.12f)) c = trim;
+    for (int x = 0; x < tex.cols; ++x) tex.at<cv::Vec3f>(y, x) = c;
+  }
+  return tex;
+}
+
+Material textured(const std::string& name, const cv::Mat& texture) {
+  Material m;
+  m.name = name;
+  m.albedo = Eigen::Vector3f::Ones();
+  m.texture = std::make_shared<const cv::Mat>(texture);
+  return m;
+}
+
+Material plain(const std::string& name, const Eigen::Vector3f& albedo) {
+  Material m;
+  m.name = name;
+  m.albedo = albedo;
+  return m;
+}
+
+}  // namespace
+
+SyntheticRoom make_synthetic_room(const SyntheticRoomSpec& spec) {
+  std::mt19937 rng(static_cast<uint32_t>(spec.seed * 2654435761u + 17u));
+  std::uniform_real_distribution<float> unit(0.f, 1.f);
+  auto between = [&](float lo, float hi) { return lo + (hi - lo) * unit(rng); };
+
+  SyntheticRoom out;
+  const float width = between(4.f, 6.f), depth = between(4.5f, 7.f), height = between(2.5f, 3.0f);
+  const float back = between(0.6f, 1.2f);  // wall behind the camera
+  const float x0 = -width / 2, x1 = width / 2, z0 = -depth, z1 = back;
+  out.room_min = {x0, 0.f, z0};
+  out.room_max = {x1, height, z1};
+
+  Mesh& m = out.room;
+  const cv::Vec3f floor_colour(between(0.35f, 0.6f), between(0.22f, 0.4f), between(0.12f, 0.25f));
+  const cv::Vec3f wall_colour(between(0.55f, 0.8f), between(0.55f, 0.8f), between(0.5f, 0.75f));
+  const cv::Vec3f trim_colour(0.85f, 0.85f, 0.82f);
+  m.materials.push_back(textured("floor", plank_texture(floor_colour, rng)));
+  m.materials.push_back(textured("wall", wall_texture(wall_colour, trim_colour * 0.6f)));
+  m.materials.push_back(plain("ceiling", {0.8f, 0.8f, 0.8f}));
+  m.materials.push_back(plain("cabinet", {between(0.2f, 0.6f), between(0.2f, 0.5f), between(0.2f, 0.4f)}));
+  Material panel = plain("light_panel", {0.f, 0.f, 0.f});
+  panel.type = Material::Type::Emissive;
+  const float power = between(6.f, 10.f);
+  const Eigen::Vector3f radiance = Eigen::Vector3f(1.f, between(0.9f, 1.f), between(0.75f, 0.95f)) * power;
+  panel.emission = radiance;
+  m.materials.push_back(panel);
+  enum { kFloor, kWall, kCeiling, kCabinet, kPanel };
+
+  using V = Eigen::Vector3f;
+  const float wall_tile = 1.f, wall_v = 3.f;
+  add_quad(m, V(x0, 0, z1), V(x1, 0, z1), V(x1, 0, z0), V(x0, 0, z0), kFloor, 1.2f);
+  // Walls: uvs with v measured down from 3 m so the trim lands at fixed heights.
+  auto wall = [&](V a, V b) {  // a -> b along the floor, normal facing into the room
+    const int base = static_cast<int>(m.positions.size());
+    const float len = (b - a).norm() / wall_tile;
+    m.positions.insert(m.positions.end(), {a, b, b + V(0, height, 0), a + V(0, height, 0)});
+    const float top = 1.f - height / wall_v;
+    m.uvs.insert(m.uvs.end(), {{0.f, 1.f}, {len, 1.f}, {len, top}, {0.f, top}});
+    m.triangles.emplace_back(base, base + 1, base + 2);
+    m.triangles.emplace_back(base, base + 2, base + 3);
+    m.material_ids.insert(m.material_ids.end(), {kWall, kWall});
+  };
+  wall(V(x0, 0, z0), V(x1, 0, z0));  // front
+  wall(V(x1, 0, z0), V(x1, 0, z1));  // right
+  wall(V(x1, 0, z1), V(x0, 0, z1));  // back
+  wall(V(x0, 0, z1), V(x0, 0, z0));  // left
+  add_quad(m, V(x0, height, z0), V(x1, height, z0), V(x1, height, z1), V(x0, height, z1), kCeiling, 1.f);
+
+  // Furniture against the front and a side wall.
+  const float cab_w = between(0.8f, 1.6f), cab_h = between(0.6f, 1.0f);
+  const float cab_x = between(x0 + 0.3f, x1 - 0.3f - cab_w);
+  add_box(m, V(cab_x, 0, z0), V(cab_x + cab_w, cab_h, z0 + 0.45f), kCabinet);
+  const float shelf_z = between(z0 + 0.8f, z0 + depth * 0.5f);
+  add_box(m, V(x0, 0, shelf_z), V(x0 + 0.4f, between(1.2f, 1.9f), shelf_z + 0.9f), kCabinet);
+
+  // One or two ceiling panels, with area lights just below them.
+  const int panels = 1 + static_cast<int>(unit(rng) * 2.f) % 2;
+  for (int i = 0; i < panels; ++i) {
+    const float cx = between(x0 * 0.5f, x1 * 0.5f);
+    const float cz = panels == 1 ? between(z0 * 0.6f, z0 * 0.3f) : z0 * (0.25f + 0.45f * i);
+    const float hx = between(0.3f, 0.6f), hz = between(0.3f, 0.6f);
+    const float y = height - 1e-3f;
+    add_quad(m, V(cx - hx, y, cz - hz), V(cx + hx, y, cz - hz), V(cx + hx, y, cz + hz), V(cx - hx, y, cz + hz), kPanel,
+             1.f);
+    AreaLight light;
+    light.corner = V(cx - hx, height - 4e-3f, cz - hz);
+    light.edge_u = V(2 * hx, 0, 0);  // edge_u x edge_v points down, into the room
+    light.edge_v = V(0, 0, 2 * hz);
+    light.radiance = radiance;
+    out.lights.area_lights.push_back(light);
+  }
+  m.compute_vertex_normals();
+  m.normals.clear();  // flat shading: boxes and walls are planar
+
+  // Camera: inside the room near the back wall, looking toward the front
+  // wall with some yaw and a downward pitch, as people hold cameras.
+  PinholeCamera& cam = out.camera;
+  cam.width = spec.width;
+  cam.height = spec.height;
+  const double hfov = spec.horizontal_fov_deg > 0 ? spec.horizontal_fov_deg : between(50.f, 75.f);
+  cam.fx = cam.fy = spec.width / 2.0 / std::tan(hfov * kDegToRad / 2.0);
+  cam.cx = (spec.width - 1) / 2.0;
+  cam.cy = (spec.height - 1) / 2.0;
+  const double yaw = between(-25.f, 25.f) * kDegToRad;
+  const double pitch = -between(8.f, 22.f) * kDegToRad;
+  const Eigen::Vector3d forward(-std::sin(yaw) * std::cos(pitch), std::sin(pitch), -std::cos(yaw) * std::cos(pitch));
+  const Eigen::Vector3d right = forward.cross(Eigen::Vector3d::UnitY()).normalized();
+  const Eigen::Vector3d down = forward.cross(right);
+  cam.R_world_from_cam.col(0) = right;
+  cam.R_world_from_cam.col(1) = down;
+  cam.R_world_from_cam.col(2) = forward;
+  cam.center_world = {between(x0 * 0.3f, x1 * 0.3f), spec.camera_height_m, z1 - 0.3};
+
+  // A floor point about 2.5 m ahead of the camera, kept off the furniture.
+  Eigen::Vector3d ahead = cam.center_world + Eigen::Vector3d(forward.x(), 0, forward.z()).normalized() * 2.5;
+  ahead.x() = std::clamp(ahead.x(), x0 + 0.8, x1 - 0.8);
+  ahead.z() = std::clamp(ahead.z(), z0 + 1.2, z1 - 1.0);
+  out.free_floor_point = Eigen::Vector3f(static_cast<float>(ahead.x()), 0.f, static_cast<float>(ahead.z()));
+  return out;
+}
+
+}  // namespace propcam::render

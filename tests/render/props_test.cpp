@@ -1,0 +1,202 @@
+#include "propcam/render/props.h"
+
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cmath>
+#include <map>
+#include <set>
+#include <stdexcept>
+
+namespace propcam::render {
+namespace {
+
+using Eigen::Vector3f;
+
+// Maps every position to a representative within `tolerance`, so parts that
+// split vertices at hard edges or seams count as one surface.
+std::vector<int> weld_positions(const std::vector<Vector3f>& positions, float tolerance) {
+  std::map<std::array<long, 3>, std::vector<int>> cells;  // grid cell -> representative ids
+  std::vector<Vector3f> representatives;
+  std::vector<int> welded(positions.size());
+  for (size_t i = 0; i < positions.size(); ++i) {
+    const Vector3f& p = positions[i];
+    const std::array<long, 3> cell = {std::lround(std::floor(p.x() / tolerance)),
+                                      std::lround(std::floor(p.y() / tolerance)),
+                                      std::lround(std::floor(p.z() / tolerance))};
+    int found = -1;
+    for (long dx = -1; dx <= 1 && found < 0; ++dx)
+      for (long dy = -1; dy <= 1 && found < 0; ++dy)
+        for (long dz = -1; dz <= 1 && found < 0; ++dz) {
+          const auto it = cells.find({cell[0] + dx, cell[1] + dy, cell[2] + dz});
+          if (it == cells.end()) continue;
+          for (int r : it->second)
+            if ((representatives[r] - p).norm() <= tolerance) {
+              found = r;
+              break;
+            }
+        }
+    if (found < 0) {
+      found = static_cast<int>(representatives.size());
+      representatives.push_back(p);
+      cells[cell].push_back(found);
+    }
+    welded[i] = found;
+  }
+  return welded;
+}
+
+double signed_volume(const Mesh& mesh) {
+  double volume = 0.0;
+  for (const auto& t : mesh.triangles) {
+    const Eigen::Vector3d a = mesh.positions[t[0]].cast<double>();
+    const Eigen::Vector3d b = mesh.positions[t[1]].cast<double>();
+    const Eigen::Vector3d c = mesh.positions[t[2]].cast<double>();
+    volume += a.dot(b.cross(c)) / 6.0;
+  }
+  return volume;
+}
+
+class PresetTest : public ::testing::TestWithParam<PropPreset> {
+ protected:
+  void SetUp() override { mesh_ = make_prop(GetParam().name); }
+  Mesh mesh_;
+};
+
+TEST_P(PresetTest, ValidatesWithFiniteNormals) {
+  ASSERT_FALSE(mesh_.empty());
+  EXPECT_NO_THROW(mesh_.validate());
+  ASSERT_EQ(mesh_.normals.size(), mesh_.positions.size());
+  for (const auto& p : mesh_.positions) ASSERT_TRUE(p.allFinite());
+  for (const auto& n : mesh_.normals) {
+    ASSERT_TRUE(n.allFinite());
+    ASSERT_NEAR(n.norm(), 1.f, 1e-4f);
+  }
+}
+
+TEST_P(PresetTest, HasNaturalHeightAndStandsCentredOnTheOrigin) {
+  const Eigen::AlignedBox3f box = mesh_.bounds();
+  const float height = box.max().y() - box.min().y();
+  EXPECT_NEAR(height, GetParam().natural_height_m, 0.01f * GetParam().natural_height_m);
+  EXPECT_NEAR(box.min().y(), 0.f, 1e-6f);
+  EXPECT_NEAR(box.center().x(), 0.f, 1e-5f);
+  EXPECT_NEAR(box.center().z(), 0.f, 1e-5f);
+}
+
+TEST_P(PresetTest, IsClosedWithConsistentOutwardWinding) {
+  const std::vector<int> welded = weld_positions(mesh_.positions, 1e-5f);
+  std::map<std::pair<int, int>, int> directed_edges;
+  for (const auto& t : mesh_.triangles)
+    for (int k = 0; k < 3; ++k) {
+      const int a = welded[t[k]], b = welded[t[(k + 1) % 3]];
+      ASSERT_NE(a, b) << "degenerate triangle";
+      ++directed_edges[{a, b}];
+    }
+  // Closed and oriented: each edge is used once in each direction, i.e. by exactly two triangles.
+  for (const auto& [edge, count] : directed_edges) {
+    ASSERT_EQ(count, 1) << "edge used twice in the same direction";
+    const auto reverse = directed_edges.find({edge.second, edge.first});
+    ASSERT_TRUE(reverse != directed_edges.end()) << "open edge at " << mesh_.positions[0].transpose();
+  }
+  const double volume = signed_volume(mesh_);
+  EXPECT_GT(volume, 0.0);
+  EXPECT_LT(volume, mesh_.bounds().volume());
+}
+
+TEST_P(PresetTest, VertexNormalsAgreeWithWinding) {
+  for (const auto& t : mesh_.triangles) {
+    const Vector3f face =
+        (mesh_.positions[t[1]] - mesh_.positions[t[0]]).cross(mesh_.positions[t[2]] - mesh_.positions[t[0]]);
+    if (face.norm() < 1e-12f) continue;
+    for (int k = 0; k < 3; ++k) ASSERT_GT(face.normalized().dot(mesh_.normals[t[k]]), 0.f);
+  }
+}
+
+TEST_P(PresetTest, EveryTriangleHasANamedMaterialWithinBudget) {
+  EXPECT_LT(mesh_.triangles.size(), 20000u);
+  ASSERT_EQ(mesh_.material_ids.size(), mesh_.triangles.size());
+  std::set<int> used(mesh_.material_ids.begin(), mesh_.material_ids.end());
+  for (const auto& m : mesh_.materials) {
+    EXPECT_FALSE(m.name.empty());
+    EXPECT_TRUE((m.albedo.array() >= 0.f).all() && (m.albedo.array() <= 1.f).all()) << m.name;
+    EXPECT_GE(m.roughness, 0.02f);
+    EXPECT_LE(m.roughness, 1.f);
+  }
+  EXPECT_EQ(used.size(), mesh_.materials.size()) << "unused material";
+}
+
+INSTANTIATE_TEST_SUITE_P(Props, PresetTest, ::testing::ValuesIn(prop_presets()),
+                         [](const ::testing::TestParamInfo<PropPreset>& info) { return info.param.name; });
+
+TEST(PropPresets, ListsTheRequiredPresetsInAStableOrder) {
+  const auto& presets = prop_presets();
+  std::set<std::string> names;
+  for (const auto& p : presets) {
+    EXPECT_TRUE(names.insert(p.name).second) << "duplicate " << p.name;
+    EXPECT_FALSE(p.description.empty());
+    EXPECT_GT(p.natural_height_m, 0.f);
+  }
+  for (const char* required : {"chair", "vase", "sphere_plinth", "mug", "table"})
+    EXPECT_TRUE(names.count(required)) << required;
+  EXPECT_EQ(&prop_presets(), &presets);
+  EXPECT_EQ(presets.front().name, "chair");
+}
+
+TEST(PropPresets, MugHandlePointsToPlusX) {
+  const Mesh mug = make_prop("mug");
+  // The round body sets the depth (z) and the left edge; the handle sticks out on +x only.
+  const Eigen::AlignedBox3f box = mug.bounds();
+  const float body_radius = 0.5f * (box.max().z() - box.min().z());
+  const float axis_x = box.min().x() + body_radius;
+  EXPECT_NEAR(box.center().z(), 0.f, 1e-5f);
+  EXPECT_GT(box.max().x() - axis_x, body_radius + 0.02f);
+}
+
+TEST(PropPresets, SphereIsSmoothShadedWithRadialNormals) {
+  const Mesh prop = make_prop("sphere_plinth");
+  int metal = -1;
+  for (size_t m = 0; m < prop.materials.size(); ++m)
+    if (prop.materials[m].type == Material::Type::Metal) metal = static_cast<int>(m);
+  ASSERT_GE(metal, 0);
+  std::set<int> ball;
+  for (size_t t = 0; t < prop.triangles.size(); ++t)
+    if (prop.material_ids[t] == metal)
+      for (int k = 0; k < 3; ++k) ball.insert(prop.triangles[t][k]);
+  ASSERT_GT(ball.size(), 1000u);
+  Eigen::AlignedBox3f ball_box;
+  for (int v : ball) ball_box.extend(prop.positions[v]);
+  const Vector3f centre = ball_box.center();
+  EXPECT_NEAR(ball_box.max().y(), prop.bounds().max().y(), 1e-6f);  // the ball is the top
+  for (int v : ball) {
+    const Vector3f radial = (prop.positions[v] - centre).normalized();
+    ASSERT_LT((prop.normals[v] - radial).norm(), 1e-4f) << prop.positions[v].transpose();
+  }
+}
+
+TEST(PropPresets, ChairBackrestIsAtMinusZ) {
+  const Mesh chair = make_prop("chair");
+  // Everything above the seat belongs to the backrest.
+  float z_sum = 0.f;
+  int count = 0;
+  for (const auto& p : chair.positions)
+    if (p.y() > 0.6f) {
+      z_sum += p.z();
+      ++count;
+    }
+  ASSERT_GT(count, 0);
+  EXPECT_LT(z_sum / static_cast<float>(count), -0.1f);
+}
+
+TEST(PropPresets, UnknownNameThrowsListingValidNames) {
+  try {
+    make_prop("teapot");
+    FAIL() << "expected std::invalid_argument";
+  } catch (const std::invalid_argument& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("teapot"), std::string::npos) << message;
+    for (const auto& p : prop_presets()) EXPECT_NE(message.find(p.name), std::string::npos) << message;
+  }
+}
+
+}  // namespace
+}  // namespace propcam::render
