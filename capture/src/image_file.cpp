@@ -6,6 +6,7 @@
 #include <array>
 #include <cmath>
 #include <filesystem>
+#include <limits>
 #include <stdexcept>
 #include <unistd.h>
 
@@ -112,6 +113,7 @@ cv::Mat load_photo_linear(const std::string& path) {
   // Non-finite or negative texels (lossy EXR) would poison every later stage.
   cv::patchNaNs(rgb, 0.0);
   cv::max(rgb, 0.0, rgb);
+  cv::min(rgb, std::numeric_limits<float>::max(), rgb);  // +inf -> largest finite
   return rgb;
 }
 

@@ -226,7 +226,8 @@ void plot_bench(const json& r, const std::string& dir) {
         "plot '" << (d / "camera_ransac.dat").string() << "' using 2:3 with linespoints pt 7 title 'focal', "
         "'' using 2:3:1 with labels offset 1,1 notitle\n";
   gp.close();
-  const std::string cmd = "gnuplot '" + (d / "plots.gp").string() + "'";
+  // gnuplot's warnings (e.g. a flat range on tiny benches) go to a log, not the user's terminal.
+  const std::string cmd = "gnuplot '" + (d / "plots.gp").string() + "' 2>'" + (d / "gnuplot.log").string() + "'";
   if (std::system(cmd.c_str()) != 0) throw std::runtime_error("gnuplot failed on " + (d / "plots.gp").string());
 }
 

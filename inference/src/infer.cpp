@@ -15,9 +15,10 @@ SceneModel infer_scene(const cv::Mat& photo_linear, const InferenceOptions& opti
   auto stage = [&](const char* name) {
     if (options.on_stage) options.on_stage(name);
   };
+  // NaN becomes 0 and infinities a bright but finite radiance, so no stage sees them.
   cv::Mat photo = photo_linear.clone();
   cv::patchNaNs(photo, 0.0);
-  photo = cv::max(photo, 0.0);
+  photo = cv::min(cv::max(photo, 0.0), kMaxPhotoRadiance);
 
   SceneModel scene;
   scene.width = photo.cols;
@@ -70,7 +71,7 @@ SceneModel infer_scene(const cv::Mat& photo_linear, const InferenceOptions& opti
   scene.reports.push_back(albedo_report);
 
   stage("lighting");
-  LightingEstimate lighting = estimate_lighting(photo, scene.depth, scene.albedo, camera, options.lighting);
+  LightingEstimate lighting = estimate_lighting(photo, scene.depth, scene.albedo, camera, scene.planes, scene.indoor, options.lighting);
   scene.lights = std::move(lighting.lights);
   for (auto& r : lighting.reports) scene.reports.push_back(std::move(r));
   scene.gamma = 2.2;  // photos are linearised with the sRGB curve; fitting it is a later issue

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <numbers>
 #include <opencv2/imgproc.hpp>
 
 #include "propcam/render/depth_mesh.h"
@@ -126,8 +127,71 @@ cv::Mat environment_from_photo(const cv::Mat& photo_linear, const render::Pinhol
   return env;
 }
 
+std::vector<LightSource> out_of_view_candidates(const render::PinholeCamera& camera,
+                                                const std::vector<SupportPlane>& planes, bool indoor,
+                                                const LightingOptions& options) {
+  std::vector<LightSource> out;
+  // Horizontal frame turned with the camera: "ahead" is the view direction made level.
+  Vector3d ahead = camera.R_world_from_cam.col(2);
+  ahead.y() = 0;
+  if (ahead.norm() < 1e-6) ahead = -Vector3d::UnitZ();
+  ahead.normalize();
+  const Vector3d side = ahead.cross(Vector3d::UnitY()).normalized();
+  if (indoor) {
+    double ceiling = 2.7;
+    for (const auto& p : planes)
+      if (p.name == "ceiling") ceiling = p.offset;
+    const double half = options.ceiling_panel_m / 2;
+    const int n = std::max(1, options.ceiling_grid);
+    for (int i = 0; i < n; ++i)
+      for (int j = 0; j < n; ++j) {
+        // From 1 m behind the camera to 4 m ahead, 3 m wide.
+        const double along = n == 1 ? 1.0 : -1.0 + 5.0 * i / (n - 1);
+        const double across = n == 1 ? 0.0 : -1.5 + 3.0 * j / (n - 1);
+        Vector3d centre = along * ahead + across * side;
+        // Keep panels inside the fitted walls.
+        for (const auto& p : planes) {
+          if (p.name == "floor" || p.name == "ceiling") continue;
+          const double d = p.normal.dot(centre) + p.offset;  // > 0 inside
+          if (d < half + 0.05) centre += p.normal * (half + 0.05 - d);
+        }
+        centre.y() = ceiling - 0.02;
+        LightSource l;
+        l.type = LightSource::Type::Area;
+        l.corner = centre - half * ahead - half * side;
+        l.edge_u = 2 * half * side;  // side x ahead points down
+        l.edge_v = 2 * half * ahead;
+        if (l.edge_u.cross(l.edge_v).y() > 0) std::swap(l.edge_u, l.edge_v);
+        l.position = centre;
+        out.push_back(l);
+      }
+  } else {
+    // Suns as small far quads (0.5 degree across) facing the scene.
+    constexpr double kSunDistanceM = 1000.0;
+    const double size = kSunDistanceM * 0.5 * std::numbers::pi / 180.0;
+    for (int a = 0; a < options.sun_azimuths; ++a)
+      for (double elevation_deg : options.sun_elevations_deg) {
+        const double az = 2 * std::numbers::pi * a / options.sun_azimuths;
+        const double el = elevation_deg * std::numbers::pi / 180.0;
+        const Vector3d dir = std::cos(el) * (std::cos(az) * ahead + std::sin(az) * side) + std::sin(el) * Vector3d::UnitY();
+        const Vector3d centre = camera.center_world + dir * kSunDistanceM;
+        Vector3d u = dir.cross(Vector3d::UnitY()).normalized(), v = u.cross(dir);
+        LightSource l;
+        l.type = LightSource::Type::Area;
+        l.edge_u = size * u;
+        l.edge_v = size * v;
+        if (l.edge_u.cross(l.edge_v).dot(dir) > 0) std::swap(l.edge_u, l.edge_v);  // face the scene
+        l.corner = centre - 0.5 * (l.edge_u + l.edge_v);
+        l.position = centre;
+        out.push_back(l);
+      }
+  }
+  return out;
+}
+
 LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& depth, const cv::Mat& albedo,
-                                   const render::PinholeCamera& camera, const LightingOptions& options) {
+                                   const render::PinholeCamera& camera, const std::vector<SupportPlane>& planes,
+                                   bool indoor, const LightingOptions& options) {
   LightingEstimate out;
   // --- Visible sources: bright connected regions, lifted to 3D with depth.
   auto start = Clock::now();
@@ -166,6 +230,9 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   sources.seconds = seconds_since(start);
   sources.details = {{"threshold", threshold}, {"regions", regions.size()}};
   out.reports.push_back(sources);
+
+  const size_t visible_sources = out.lights.size();
+  for (auto& candidate : out_of_view_candidates(camera, planes, indoor, options)) out.lights.push_back(candidate);
 
   // --- Out-of-view light: the photo wrapped onto a sphere.
   start = Clock::now();
@@ -268,6 +335,13 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
     out.lights[i].intensity = weights[i];
     any_light = any_light || weights[i].maxCoeff() > 0;
   }
+  // Pruning (the point of the sparsity prior): lights the fit switched off
+  // cost render time and add nothing. The environment is always kept.
+  const size_t hypotheses = out.lights.size();
+  std::vector<LightSource> kept;
+  for (auto& l : out.lights)
+    if (l.type == LightSource::Type::Ibl || l.intensity.maxCoeff() > 0) kept.push_back(std::move(l));
+  out.lights = std::move(kept);
   if (!any_light && !out.lights.empty()) {
     // A black photo or a fit that switched everything off: keep a dim
     // environment so the prop is still visible rather than pure black.
@@ -281,7 +355,8 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   fit.seconds = seconds_since(start);
   fit.error = signal > 0 ? std::sqrt(residual / signal) : 0.0;  // relative RMS of the re-render
   fit.details = {{"basis_renders", k}, {"resolution", {fit_w, fit_h}}, {"samples_per_pixel", settings.samples_per_pixel},
-                 {"converged", converged}, {"pixels", used.size()}};
+                 {"converged", converged}, {"pixels", used.size()},
+                 {"visible_sources", visible_sources}, {"hypotheses", hypotheses}, {"kept", out.lights.size()}};
   out.reports.push_back(fit);
   return out;
 }

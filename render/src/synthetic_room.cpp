@@ -35,34 +35,37 @@ void add_box(Mesh& mesh, const Eigen::Vector3f& lo, const Eigen::Vector3f& hi, i
   add_quad(mesh, V(x0, y1, z1), V(x1, y1, z1), V(x1, y1, z0), V(x0, y1, z0), material, 1.f);  // +y
 }
 
-cv::Mat plank_texture(const cv::Vec3f& base, std::mt19937& rng) {
-  // 512 px = one tile; six planks with dark seams and slightly varied tone.
+cv::Mat tile_texture(const cv::Vec3f& base, std::mt19937& rng) {
+  // 512 px = one 1.2 m tile period: 2x2 tiles with grout lines in both
+  // directions (lines along both horizontal axes) and slightly varied tones.
   cv::Mat tex(512, 512, CV_32FC3);
-  std::uniform_real_distribution<float> tone(0.8f, 1.15f);
-  const int planks = 6;
-  std::vector<float> tones(planks);
-  for (auto& t : tones) t = tone(rng);
+  std::uniform_real_distribution<float> tone(0.85f, 1.1f);
+  const float tones[4] = {tone(rng), tone(rng), tone(rng), tone(rng)};
   for (int y = 0; y < tex.rows; ++y)
     for (int x = 0; x < tex.cols; ++x) {
-      const int plank = y * planks / tex.rows;
-      const bool seam = (y % (tex.rows / planks)) < 3;
-      const float grain = 0.92f + 0.08f * std::sin(x * 0.05f + plank * 1.7f + 3.f * std::sin(y * 0.02f));
-      const float k = seam ? 0.35f : tones[plank] * grain;
+      const bool grout = (x % 256) < 5 || (y % 256) < 5;
+      const float grain = 0.95f + 0.05f * std::sin(x * 0.11f + 2.f * std::sin(y * 0.07f));
+      const float k = grout ? 0.3f : tones[(y / 256) * 2 + x / 256] * grain;
       tex.at<cv::Vec3f>(y, x) = base * k;
     }
   return tex;
 }
 
 cv::Mat wall_texture(const cv::Vec3f& base, const cv::Vec3f& trim) {
-  // A wall with a skirting board and a picture rail: long horizontal edges
-  // give the vanishing-point stage lines, as real rooms do. One tile = 1 m
-  // horizontally; the texture is mapped with v = height.
+  // Striped wallpaper above panelling, a skirting board and a picture rail:
+  // long vertical and horizontal edges, as real rooms have. One tile = 1 m
+  // horizontally; the texture is mapped with v = height over 3 m.
   cv::Mat tex(512, 128, CV_32FC3);
   for (int y = 0; y < tex.rows; ++y) {
-    const float h = 3.f * (1.f - (y + 0.5f) / tex.rows);  // metres above floor over 3 m
-    cv::Vec3f c = base;
-    if (h < 0.12f || (h > 2.05f && h < 2.12f)) c = trim;
-    for (int x = 0; x < tex.cols; ++x) tex.at<cv::Vec3f>(y, x) = c;
+    const float h = 3.f * (1.f - (y + 0.5f) / tex.rows);  // metres above floor
+    for (int x = 0; x < tex.cols; ++x) {
+      cv::Vec3f c = base;
+      const bool stripe = (x % 64) < 4;                      // every 0.5 m
+      if (h < 0.9f) c = base * 0.8f;                         // panelling
+      if (stripe) c = base * (h < 0.9f ? 0.45f : 0.7f);
+      if (h < 0.12f || (h > 0.88f && h < 0.93f) || (h > 2.05f && h < 2.12f)) c = trim;
+      tex.at<cv::Vec3f>(y, x) = c;
+    }
   }
   return tex;
 }
@@ -100,7 +103,7 @@ SyntheticRoom make_synthetic_room(const SyntheticRoomSpec& spec) {
   const cv::Vec3f floor_colour(between(0.35f, 0.6f), between(0.22f, 0.4f), between(0.12f, 0.25f));
   const cv::Vec3f wall_colour(between(0.55f, 0.8f), between(0.55f, 0.8f), between(0.5f, 0.75f));
   const cv::Vec3f trim_colour(0.85f, 0.85f, 0.82f);
-  m.materials.push_back(textured("floor", plank_texture(floor_colour, rng)));
+  m.materials.push_back(textured("floor", tile_texture(floor_colour, rng)));
   m.materials.push_back(textured("wall", wall_texture(wall_colour, trim_colour * 0.6f)));
   m.materials.push_back(plain("ceiling", {0.8f, 0.8f, 0.8f}));
   m.materials.push_back(plain("cabinet", {between(0.2f, 0.6f), between(0.2f, 0.5f), between(0.2f, 0.4f)}));

@@ -83,9 +83,11 @@ TEST(MeshIo, PresetsSurviveAnObjRoundTrip) {
 TEST(MeshIo, RoundTripKeepsMaterialParametersTexturesAndUvs) {
   const fs::path folder = test_folder();
   Mesh quad;
-  quad.positions = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {2, 0, 0}, {3, 0, 0}, {3, 1, 0}};
-  quad.uvs = {{0, 0}, {1, 0}, {1, 1}, {0, 1}, {0, 0}, {1, 0}, {1, 1}};
-  quad.triangles = {{0, 1, 2}, {0, 2, 3}, {4, 5, 6}, {4, 6, 5}};
+  // A textured quad and two separate triangles.
+  quad.positions = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {2, 0, 0},
+                    {3, 0, 0}, {3, 1, 0}, {4, 0, 0}, {5, 0, 0}, {5, 1, 0}};
+  quad.uvs = {{0, 0}, {1, 0}, {1, 1}, {0, 1}, {0.25f, 0.75f}, {0, 0}, {0, 0}, {0, 0}, {0, 0}, {0, 0}};
+  quad.triangles = {{0, 1, 2}, {0, 2, 3}, {4, 5, 6}, {7, 8, 9}};
   quad.compute_vertex_normals();
   Material textured;
   textured.name = "printed paper";  // a space must not break the MTL
@@ -279,7 +281,7 @@ TEST(MeshIo, MissingMtlFallsBackToDefaultGrey) {
   EXPECT_LT((mesh.normals[0] - Vector3f::UnitZ()).norm(), 1e-6f);
 }
 
-TEST(MeshIo, ErrorsNameTheFile) {
+TEST(MeshIo, LoadErrorsNameTheFile) {
   const fs::path folder = test_folder();
   const std::string missing = (folder / "missing.obj").string();
   std::string message = runtime_error_of([&] { load_mesh_file(missing); });
@@ -291,7 +293,11 @@ TEST(MeshIo, ErrorsNameTheFile) {
   message = runtime_error_of([&] { load_mesh_file(no_faces); });
   EXPECT_NE(message.find(no_faces), std::string::npos) << message;
   EXPECT_NE(message.find("no triangles"), std::string::npos) << message;
+}
 
+TEST(MeshIo, RejectsBrokenFilesNamingThem) {
+  const fs::path folder = test_folder();
+  std::string message;
   const std::string bad_index = (folder / "bad_index.obj").string();
   write_file(bad_index, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n");
   message = runtime_error_of([&] { load_mesh_file(bad_index); });
@@ -317,9 +323,12 @@ TEST(MeshIo, ErrorsNameTheFile) {
   write_file(ply, "ply\n");
   message = runtime_error_of([&] { load_mesh_file(ply); });
   EXPECT_NE(message.find("unsupported"), std::string::npos) << message;
+}
 
+TEST(MeshIo, SaveErrorsNameTheFile) {
+  const fs::path folder = test_folder();
   const std::string unwritable = (folder / "no_such_folder" / "out.obj").string();
-  message = runtime_error_of([&] { save_obj(make_prop("mug"), unwritable); });
+  const std::string message = runtime_error_of([&] { save_obj(make_prop("mug"), unwritable); });
   EXPECT_NE(message.find(unwritable), std::string::npos) << message;
   EXPECT_NE(runtime_error_of([&] { save_obj(Mesh{}, (folder / "empty.obj").string()); }), "");
 }

@@ -7,6 +7,8 @@
 #include <map>
 #include <set>
 #include <stdexcept>
+#include <string>
+#include <utility>
 
 namespace propcam::render {
 namespace {
@@ -57,6 +59,35 @@ double signed_volume(const Mesh& mesh) {
   return volume;
 }
 
+// "" when every edge (after welding positions within 1e-5) is used exactly once
+// in each direction, i.e. by exactly two consistently wound triangles.
+std::string closedness_problem(const Mesh& mesh) {
+  const std::vector<int> welded = weld_positions(mesh.positions, 1e-5f);
+  std::map<std::pair<int, int>, int> directed_edges;
+  for (const auto& t : mesh.triangles)
+    for (int k = 0; k < 3; ++k) {
+      const int a = welded[t[k]], b = welded[t[(k + 1) % 3]];
+      if (a == b) return "degenerate triangle";
+      ++directed_edges[{a, b}];
+    }
+  for (const auto& [edge, count] : directed_edges) {
+    if (count != 1) return "edge used twice in the same direction (inconsistent winding)";
+    if (!directed_edges.count({edge.second, edge.first})) return "open edge (hole)";
+  }
+  return "";
+}
+
+TEST(PropTestHelpers, ClosednessCheckCatchesHolesAndFlippedTriangles) {
+  Mesh box = make_prop("cube");
+  ASSERT_EQ(closedness_problem(box), "");
+  Mesh open = box;
+  open.triangles.pop_back();
+  EXPECT_EQ(closedness_problem(open), "open edge (hole)");
+  Mesh flipped = box;
+  std::swap(flipped.triangles[0][1], flipped.triangles[0][2]);
+  EXPECT_NE(closedness_problem(flipped), "");
+}
+
 class PresetTest : public ::testing::TestWithParam<PropPreset> {
  protected:
   void SetUp() override { mesh_ = make_prop(GetParam().name); }
@@ -84,20 +115,7 @@ TEST_P(PresetTest, HasNaturalHeightAndStandsCentredOnTheOrigin) {
 }
 
 TEST_P(PresetTest, IsClosedWithConsistentOutwardWinding) {
-  const std::vector<int> welded = weld_positions(mesh_.positions, 1e-5f);
-  std::map<std::pair<int, int>, int> directed_edges;
-  for (const auto& t : mesh_.triangles)
-    for (int k = 0; k < 3; ++k) {
-      const int a = welded[t[k]], b = welded[t[(k + 1) % 3]];
-      ASSERT_NE(a, b) << "degenerate triangle";
-      ++directed_edges[{a, b}];
-    }
-  // Closed and oriented: each edge is used once in each direction, i.e. by exactly two triangles.
-  for (const auto& [edge, count] : directed_edges) {
-    ASSERT_EQ(count, 1) << "edge used twice in the same direction";
-    const auto reverse = directed_edges.find({edge.second, edge.first});
-    ASSERT_TRUE(reverse != directed_edges.end()) << "open edge at " << mesh_.positions[0].transpose();
-  }
+  EXPECT_EQ(closedness_problem(mesh_), "");
   const double volume = signed_volume(mesh_);
   EXPECT_GT(volume, 0.0);
   EXPECT_LT(volume, mesh_.bounds().volume());

@@ -32,5 +32,7 @@ struct InferenceOptions {
 SceneModel infer_scene(const cv::Mat& photo_linear, const InferenceOptions& options = {});
 
 constexpr int kMinPhotoSide = 16;
+// Linear radiance above this is clipped (HDR inputs, and infinities).
+constexpr double kMaxPhotoRadiance = 1e4;
 
 }  // namespace propcam::inference

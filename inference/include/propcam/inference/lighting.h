@@ -32,6 +32,12 @@ struct LightingOptions {
   int max_fit_iterations = 500;
   double fit_tolerance = 1e-7;          // relative change that ends coordinate descent
   double sparsity = 1e-3;               // L1 weight on intensities (the paper's sparsity prior)
+  // Out-of-view source hypotheses the fit chooses among (and prunes): a grid
+  // of ceiling panels indoors, sun directions outdoors.
+  int ceiling_grid = 3;                 // n x n panels
+  double ceiling_panel_m = 0.6;
+  int sun_azimuths = 8;
+  double sun_elevations_deg[2] = {25.0, 55.0};
   uint64_t seed = 11;
 };
 
@@ -42,7 +48,13 @@ struct LightingEstimate {
 };
 
 LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& depth, const cv::Mat& albedo,
-                                   const render::PinholeCamera& camera, const LightingOptions& options);
+                                   const render::PinholeCamera& camera, const std::vector<SupportPlane>& planes,
+                                   bool indoor, const LightingOptions& options);
+
+// Candidate sources outside the frame (unit intensity), for the fit to choose from.
+std::vector<LightSource> out_of_view_candidates(const render::PinholeCamera& camera,
+                                                const std::vector<SupportPlane>& planes, bool indoor,
+                                                const LightingOptions& options);
 
 // Khan-style environment: directions in front of the camera see the (blurred)
 // photo, directions behind it its mirror image.

@@ -3,7 +3,7 @@
 // (Y up, metres).
 #pragma once
 
-#include <Eigen/Core>
+#include <Eigen/Dense>
 
 namespace propcam::render {
 

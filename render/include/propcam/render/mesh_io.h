@@ -1,13 +1,14 @@
 // Mesh files: Wavefront OBJ with its MTL materials, in and out.
 //
-// MTL -> Material mapping (the inverse is used when saving):
-//   Ke non-zero                       -> Emissive (emission = Ke, albedo = Kd)
-//   illum 3, or Ks bright and Kd dark -> Metal    (albedo = Ks, roughness from Ns)
-//   Ks non-zero                       -> Glossy   (albedo = Kd, specular = max(Ks),
-//                                                  roughness alpha = sqrt(2 / (Ns + 2)))
-//   otherwise                         -> Diffuse  (albedo = Kd)
-//   map_Kd                            -> texture (sRGB file -> linear RGB CV_32FC3),
-//                                        path relative to the .mtl file's folder
+// MTL -> Material (save_obj writes the inverse):
+//   Ke non-zero                          -> Emissive: emission = Ke, albedo = Kd
+//   illum 3, or a bright Ks over a dark
+//   Kd (max(Ks) >= 0.5, max(Kd) <= 0.1)  -> Metal:    albedo = Ks, roughness from Ns
+//   Ks non-zero                          -> Glossy:   albedo = Kd, specular = max(Ks),
+//                                                     roughness from Ns
+//   otherwise                            -> Diffuse:  albedo = Kd
+// Roughness (GGX alpha) = sqrt(2 / (Ns + 2)); colours are clamped to [0, 1].
+// map_Kd -> texture: sRGB file -> linear RGB CV_32FC3, path relative to its .mtl.
 // Mesh uvs follow the renderer's image convention (v down: row = v * rows);
 // the OBJ's v-up texture coordinates are flipped on load and on save.
 #pragma once
@@ -20,8 +21,9 @@ namespace propcam::render {
 
 // Loads an .obj file and the .mtl files it names. Polygons are triangulated and
 // corners with different position/uv/normal index triples become separate
-// vertices. Missing normals are computed (smooth, split at creases sharper than
-// 60 degrees); faces without a material get a default grey diffuse one.
+// vertices. Missing normals are computed (smooth, but faces meeting at more than
+// 60 degrees keep separate normals); faces without a material get a default
+// grey diffuse one.
 // Throws std::runtime_error naming the file when it is missing, unparsable,
 // holds no triangles or non-finite numbers, or a texture cannot be read.
 Mesh load_mesh_file(const std::string& path);

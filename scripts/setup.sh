@@ -1,0 +1,34 @@
+#!/usr/bin/env bash
+# Installs every Debian (bookworm) package PropCam needs to build, test and run.
+set -euo pipefail
+
+packages=(
+  # toolchain
+  build-essential cmake ninja-build pkg-config git
+  # hardware backends named by the design
+  libcamera-dev libv4l-dev libgpiod-dev
+  # vision, geometry, rendering, image files
+  libopencv-dev libopencv-contrib-dev libeigen3-dev libembree-dev libceres-dev
+  libopenimageio-dev openimageio-tools
+  # libraries the code uses
+  libcli11-dev nlohmann-json3-dev libspdlog-dev libtinyobjloader-dev libfreetype-dev fonts-dejavu-core
+  # tests and benchmarks
+  libgtest-dev libgmock-dev libbenchmark-dev gnuplot-nox
+  # real photographs for tests (OpenCV's sample images)
+  opencv-doc
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if ((${#missing[@]} == 0)); then
+  echo "setup: all ${#packages[@]} packages present"
+  exit 0
+fi
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+echo "setup: installing ${missing[*]}"
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -q
+$SUDO apt-get install -y -q --no-install-recommends "${missing[@]}"

@@ -1,0 +1,152 @@
+// Runs the real `propcam` executable as a user would.
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "propcam/capture/image_file.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+struct CliRun {
+  int exit_code;
+  std::string out;  // stdout and stderr
+};
+
+CliRun propcam(const std::string& args) {
+  const std::string cmd = std::string(PROPCAM_CLI) + " " + args + " 2>&1";
+  CliRun r{0, ""};
+  FILE* pipe = popen(cmd.c_str(), "r");
+  std::array<char, 4096> buf{};
+  while (fgets(buf.data(), buf.size(), pipe)) r.out += buf.data();
+  const int status = pclose(pipe);
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+json json_tail(const std::string& text) {
+  // The JSON document is the last thing printed (progress goes before it).
+  const auto start = text.find_first_of("[{");
+  return json::parse(text.substr(start));
+}
+
+std::string temp(const std::string& name) {
+  const fs::path p = fs::path(::testing::TempDir()) / "propcam_cli" / name;
+  fs::create_directories(p.parent_path());
+  return p.string();
+}
+
+// A small photo made by the project itself (synthetic room).
+const std::string& fixture_photo() {
+  static const std::string dir = [] {
+    const std::string d = temp("room");
+    const CliRun r = propcam("synth -o " + d + " --seed 4 --size 160x120 --spp 8");
+    EXPECT_EQ(r.exit_code, 0) << r.out;
+    return d;
+  }();
+  static const std::string photo = dir + "/photo.png";
+  return photo;
+}
+
+TEST(Cli, PropsListsAtLeastFourPresets) {
+  const CliRun r = propcam("props --json");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const json list = json::parse(r.out);
+  ASSERT_GE(list.size(), 4u);
+  for (const auto& p : list) {
+    EXPECT_GT(p["height_m"].get<double>(), 0);
+    EXPECT_GT(p["triangles"].get<int>(), 0);
+  }
+}
+
+TEST(Cli, InferWritesTheSceneFolderContract) {
+  const std::string out = temp("scene");
+  const CliRun r = propcam("infer " + fixture_photo() + " -o " + out);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  std::ifstream in(out + "/scene.json");
+  const json s = json::parse(in);
+  for (const char* k : {"fx", "fy", "cx", "cy"}) EXPECT_TRUE(s["K"][k].is_number()) << k;
+  EXPECT_EQ(s["R_world_from_cam"].size(), 3u);
+  EXPECT_GT(s["camera_height_m"].get<double>(), 0);
+  EXPECT_TRUE(s["gamma"].is_number());
+  ASSERT_FALSE(s["lights"].empty());
+  for (const auto& l : s["lights"]) {
+    EXPECT_TRUE(l["type"] == "area" || l["type"] == "point" || l["type"] == "sun" || l["type"] == "ibl");
+    EXPECT_EQ(l["intensity"].size(), 3u);
+  }
+  for (const auto& rep : s["reports"])
+    for (const char* k : {"stage", "usable", "why", "iterations", "seconds"}) EXPECT_TRUE(rep.contains(k)) << k;
+  const cv::Mat depth = propcam::capture::read_image_float(out + "/depth.exr");
+  EXPECT_EQ(depth.cols, 160);
+  EXPECT_EQ(depth.channels(), 1);
+  EXPECT_EQ(propcam::capture::read_image_float(out + "/albedo.exr").channels(), 3);
+}
+
+TEST(Cli, CompositeWritesAnImageOfThePhotosSize) {
+  const std::string out = temp("composite.png");
+  const CliRun r = propcam("composite " + fixture_photo() + " --prop vase --at 80,95 --spp 2 --json -o " + out);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const json summary = json_tail(r.out);
+  EXPECT_EQ(summary["output"], out);
+  const cv::Mat img = propcam::capture::read_image_float(out);
+  EXPECT_EQ(img.cols, 160);
+  EXPECT_EQ(img.rows, 120);
+}
+
+TEST(Cli, CompositeReusesASceneFolderAndAcceptsAMeshFile) {
+  const std::string scene = temp("scene2");
+  ASSERT_EQ(propcam("infer " + fixture_photo() + " -o " + scene).exit_code, 0);
+  const std::string obj = temp("tri.obj");
+  std::ofstream(obj) << "v -0.5 0 0\nv 0.5 0 0\nv 0 1 0\nv 0 0 0.5\nf 1 2 3\nf 1 4 2\nf 2 4 3\nf 3 4 1\n";
+  const CliRun r = propcam("composite " + fixture_photo() + " --scene " + scene + " --prop " + obj +
+                        " --material metal --albedo 0.9,0.6,0.2 --height 0.3 --yaw 45 --at 80,95 --spp 1 -o " +
+                        temp("c2.png"));
+  EXPECT_EQ(r.exit_code, 0) << r.out;
+}
+
+TEST(Cli, BadInputIsAClearErrorNotACrash) {
+  CliRun r = propcam("composite " + fixture_photo() + " --prop vase --at banana -o " + temp("x.png"));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.out.find("--at expects U,V"), std::string::npos) << r.out;
+  r = propcam("composite " + fixture_photo() + " --prop no_such_prop --at 10,10 -o " + temp("x.png"));
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.out.find("no_such_prop"), std::string::npos) << r.out;
+  r = propcam("composite " + fixture_photo() + " --prop vase --at 80,5 --spp 1 -o " + temp("x.png"));
+  EXPECT_NE(r.exit_code, 0);  // a wall, not a support
+  EXPECT_FALSE(fs::exists(temp("x.png")));
+  const std::string junk = temp("junk.png");
+  std::ofstream(junk) << "not an image";
+  r = propcam("infer " + junk + " -o " + temp("junk_scene"));
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.out.find("junk.png"), std::string::npos) << r.out;
+}
+
+TEST(Cli, InferOnLineSegments) {
+  const std::string csv = temp("lines.csv");
+  std::ofstream(csv) << "x1,y1,x2,y2\n10,10,100,12\n";
+  const CliRun r = propcam("infer --lines " + csv + " --size 640x480");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const json j = json::parse(r.out);
+  EXPECT_GT(j["K"]["fx"].get<double>(), 0);
+  EXPECT_EQ(propcam("infer --lines " + csv).exit_code, 2);
+}
+
+TEST(Cli, BenchReportsStagesAndPlots) {
+  const std::string plots = temp("plots");
+  const CliRun r = propcam("bench --json --size 96x72 --max-spp 2 --reference-spp 8 --plot " + plots);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const json b = json_tail(r.out);
+  EXPECT_FALSE(b["stages"].empty());
+  EXPECT_EQ(b["sweeps"]["render_spp"].size(), 2u);
+  EXPECT_FALSE(b["sweeps"]["camera_ransac"].empty());
+  EXPECT_GT(fs::file_size(plots + "/render_spp.png"), 1000u);
+  EXPECT_GT(fs::file_size(plots + "/camera_ransac.png"), 1000u);
+}
+
+}  // namespace

@@ -1,0 +1,142 @@
+#include <gtest/gtest.h>
+
+#include <opencv2/imgproc.hpp>
+
+#include "compositor.h"
+#include "propcam/inference/infer.h"
+#include "synthetic_truth.h"
+
+namespace propcam::firmware {
+namespace {
+
+double mean_luminance(const cv::Mat& rgb, const cv::Mat& mask) {
+  cv::Mat grey;
+  cv::transform(rgb, grey, cv::Matx13f(0.2126f, 0.7152f, 0.0722f));
+  return cv::mean(grey, mask)[0];
+}
+
+double rmse(const cv::Mat& a, const cv::Mat& b, const cv::Mat& mask) {
+  cv::Mat d = a - b;
+  d = d.mul(d);
+  const cv::Scalar m = cv::mean(d, mask);
+  return std::sqrt((m[0] + m[1] + m[2]) / 3.0);
+}
+
+// One synthetic room for all tests: a photo with exact ground truth.
+class CompositeTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    render::SyntheticRoomSpec spec;
+    spec.width = 320;
+    spec.height = 240;
+    spec.seed = 4;
+    render::RenderSettings settings;
+    settings.samples_per_pixel = 32;
+    shot_ = new SyntheticShot(shoot_synthetic_room(spec, settings));
+  }
+  static void TearDownTestSuite() { delete shot_; }
+
+  static render::PropPlacement at_free_floor(double height) {
+    const Eigen::Vector2d px = free_floor_pixel(shot_->room);
+    return {px.x(), px.y(), height, 20.0};
+  }
+  static CompositeResult composite(const inference::SceneModel& scene, const std::string& prop, double height,
+                                   int spp = 16) {
+    render::RenderSettings s;
+    s.samples_per_pixel = spp;
+    return composite_prop(shot_->photo_linear, scene, load_prop(prop), at_free_floor(height), s);
+  }
+  static SyntheticShot* shot_;
+};
+SyntheticShot* CompositeTest::shot_ = nullptr;
+
+TEST_F(CompositeTest, PixelsFarFromThePropAreUnchanged) {
+  const CompositeResult r = composite(shot_->truth, "cube", 0.4);
+  // The top quarter of the frame (walls, ceiling) is far from a floor prop.
+  const cv::Rect top(0, 0, shot_->photo_linear.cols, shot_->photo_linear.rows / 4);
+  cv::Mat diff;
+  cv::absdiff(r.composite_linear(top), shot_->photo_linear(top), diff);
+  cv::Mat grey;
+  cv::transform(diff, grey, cv::Matx13f(1.f, 1.f, 1.f));
+  EXPECT_LT(cv::mean(grey)[0], 3e-3);
+  const double unchanged = static_cast<double>(cv::countNonZero(grey == 0)) / grey.total();
+  EXPECT_GT(unchanged, 0.9) << "shared samples should leave untouched pixels bit-identical";
+  EXPECT_GT(cv::countNonZero(r.render.coverage > 0.5), 50) << "the prop is in view";
+}
+
+TEST_F(CompositeTest, ThePropsShadowDarkensTheFloorBesideIt) {
+  const CompositeResult r = composite(shot_->truth, "cube", 0.4, 32);
+  const cv::Mat prop_mask = r.render.coverage > 0;
+  const cv::Rect box = cv::boundingRect(prop_mask);
+  ASSERT_GT(box.area(), 0);
+  // Floor around the base: the box widened by half its width, around its bottom edge.
+  cv::Rect ring(box.x - box.width / 2, box.y + box.height * 2 / 3, box.width * 2, box.height * 2 / 3);
+  ring &= cv::Rect(0, 0, prop_mask.cols, prop_mask.rows);
+  cv::Mat floor_mask = cv::Mat::zeros(prop_mask.size(), CV_8U);
+  floor_mask(ring).setTo(255);
+  floor_mask.setTo(0, prop_mask);
+  const double before = mean_luminance(shot_->photo_linear, floor_mask);
+  const double after = mean_luminance(r.composite_linear, floor_mask);
+  EXPECT_LT(after, 0.95 * before) << "before " << before << " after " << after;
+}
+
+TEST_F(CompositeTest, CompositeFromInferredSceneApproachesTheFullInsertion) {
+  const inference::SceneModel inferred = inference::infer_scene(shot_->photo_linear);
+  render::RenderSettings s;
+  s.samples_per_pixel = 32;
+  // A diffuse prop: its look depends on the inferred light, not on a mirror
+  // image of the unseen room.
+  const render::Mesh prop = load_prop("chair");
+  const render::PropPlacement placement = at_free_floor(0.9);
+  const cv::Mat insertion = render_full_insertion(shot_->room, prop, placement, s);
+  const CompositeResult r = composite_prop(shot_->photo_linear, inferred, prop, placement, s);
+  // Where the prop and its effects are: its silhouette in the true insertion, grown.
+  cv::Mat diff;
+  cv::absdiff(insertion, shot_->photo_linear, diff);
+  cv::Mat region;
+  cv::transform(diff, region, cv::Matx13f(1.f, 1.f, 1.f));
+  region = region > 0.02;
+  cv::dilate(region, region, cv::getStructuringElement(cv::MORPH_ELLIPSE, {15, 15}));
+  ASSERT_GT(cv::countNonZero(region), 100);
+  const double composite_error = rmse(r.composite_linear, insertion, region);
+  const double photo_error = rmse(shot_->photo_linear, insertion, region);
+  EXPECT_LT(composite_error, 0.7 * photo_error) << "composite " << composite_error << " photo " << photo_error;
+}
+
+TEST_F(CompositeTest, SameSeedSameComposite) {
+  const CompositeResult a = composite(shot_->truth, "mug", 0.3, 2);
+  const CompositeResult b = composite(shot_->truth, "mug", 0.3, 2);
+  EXPECT_EQ(cv::norm(a.composite_linear, b.composite_linear, cv::NORM_INF), 0.0);
+}
+
+TEST_F(CompositeTest, PlacementOutsideThePhotoOrOnAWallIsAClearError) {
+  render::RenderSettings s;
+  s.samples_per_pixel = 1;
+  const render::Mesh prop = load_prop("cube");
+  EXPECT_THROW(composite_prop(shot_->photo_linear, shot_->truth, prop, {-50, 10, 0.2, 0}, s), std::invalid_argument);
+  // The top rows of the frame see a wall.
+  try {
+    composite_prop(shot_->photo_linear, shot_->truth, prop, {160, 5, 0.2, 0}, s);
+    FAIL() << "placing on a wall must fail";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("tilted"), std::string::npos) << e.what();
+  }
+}
+
+TEST_F(CompositeTest, PropAtTheHorizonStaysFinite) {
+  // A level camera's horizon row: the support point is very far away.
+  inference::SceneModel scene = inference::infer_scene(shot_->photo_linear);
+  const double horizon_row = scene.cy - scene.fy * scene.R_world_from_cam(1, 2) / scene.R_world_from_cam(1, 1);
+  render::RenderSettings s;
+  s.samples_per_pixel = 1;
+  const double row = std::clamp(horizon_row + 1.0, 0.0, scene.height - 1.0);
+  try {
+    const CompositeResult r = composite_prop(shot_->photo_linear, scene, load_prop("cube"), {160, row, 0.2, 0}, s);
+    EXPECT_TRUE(cv::checkRange(r.composite_linear));
+  } catch (const std::invalid_argument&) {
+    SUCCEED() << "a clear refusal is also acceptable";
+  }
+}
+
+}  // namespace
+}  // namespace propcam::firmware

@@ -1,0 +1,115 @@
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <limits>
+
+#include "propcam/inference/infer.h"
+
+namespace propcam::inference {
+namespace {
+
+void expect_finite_model(const SceneModel& s) {
+  EXPECT_NO_THROW(s.validate());
+  EXPECT_TRUE(std::isfinite(s.fx) && s.fx > 0);
+  EXPECT_TRUE(cv::checkRange(s.depth));
+  EXPECT_TRUE(cv::checkRange(s.albedo));
+  double min_depth = 0;
+  cv::minMaxLoc(s.depth, &min_depth);
+  EXPECT_GT(min_depth, 0.0);
+  for (const auto& l : s.lights) EXPECT_TRUE(l.intensity.allFinite());
+  EXPECT_FALSE(s.reports.empty());
+}
+
+// A tiny room drawn by hand: floor below, wall above, a few edges.
+cv::Mat simple_room(int w, int h) {
+  cv::Mat img(h, w, CV_32FC3, cv::Scalar(0.3f, 0.3f, 0.28f));
+  img.rowRange(h / 2, h).setTo(cv::Scalar(0.2f, 0.12f, 0.06f));
+  for (int x = w / 8; x < w; x += w / 4) img.colRange(x, x + 2).rowRange(0, h / 2).setTo(cv::Scalar(0.05f, 0.05f, 0.05f));
+  return img;
+}
+
+TEST(InferHardCases, BlackFrameGivesAFiniteModel) {
+  const SceneModel s = infer_scene(cv::Mat(120, 160, CV_32FC3, cv::Scalar::all(0)));
+  expect_finite_model(s);
+}
+
+TEST(InferHardCases, SaturatedFrameGivesAFiniteModel) {
+  const SceneModel s = infer_scene(cv::Mat(120, 160, CV_32FC3, cv::Scalar::all(1.0)));
+  expect_finite_model(s);
+}
+
+TEST(InferHardCases, NonFinitePixelsAreNeutralised) {
+  cv::Mat img = simple_room(160, 120);
+  img.at<cv::Vec3f>(10, 10) = cv::Vec3f(std::numeric_limits<float>::quiet_NaN(), 1.f / 0.f, -5.f);
+  expect_finite_model(infer_scene(img));
+}
+
+TEST(InferHardCases, SmallestAcceptedFrame) {
+  expect_finite_model(infer_scene(simple_room(kMinPhotoSide, kMinPhotoSide)));
+}
+
+TEST(InferHardCases, TooSmallOrEmptyFrameIsAClearError) {
+  EXPECT_THROW(infer_scene(cv::Mat(8, 8, CV_32FC3, cv::Scalar::all(0.5))), std::invalid_argument);
+  EXPECT_THROW(infer_scene(cv::Mat()), std::invalid_argument);
+  EXPECT_THROW(infer_scene(cv::Mat(64, 64, CV_8UC3)), std::invalid_argument);
+}
+
+TEST(InferScene, IsDeterministic) {
+  const cv::Mat img = simple_room(160, 120);
+  const SceneModel a = infer_scene(img), b = infer_scene(img);
+  EXPECT_EQ(a.R_world_from_cam, b.R_world_from_cam);
+  EXPECT_EQ(cv::norm(a.depth, b.depth, cv::NORM_INF), 0.0);
+  ASSERT_EQ(a.lights.size(), b.lights.size());
+  for (size_t i = 0; i < a.lights.size(); ++i) EXPECT_EQ(a.lights[i].intensity, b.lights[i].intensity);
+}
+
+TEST(InferScene, FloorDepthFollowsFromCameraHeight) {
+  // A level camera (no lines) 1.5 m up: a floor pixel r rows below the
+  // horizon is at depth f * h / r.
+  InferenceOptions options;
+  options.camera_height_m = 1.5;
+  options.given_lines = std::vector<LineSegment>{};
+  const cv::Mat img(240, 320, CV_32FC3, cv::Scalar::all(0.2));
+  const SceneModel s = infer_scene(img, options);
+  const double rows_below = 200 - s.cy;
+  EXPECT_NEAR(s.depth.at<float>(200, 160), s.fx * 1.5 / rows_below, 1e-3);
+  EXPECT_NEAR(s.normals.at<cv::Vec3f>(200, 160)[1], 1.0, 1e-6);
+}
+
+TEST(SceneModelFolder, RoundTripsEverything) {
+  SceneModel s = infer_scene(simple_room(96, 72));
+  s.source_photo = "room.png";
+  const std::string dir = ::testing::TempDir() + "/scene_roundtrip";
+  std::filesystem::remove_all(dir);
+  save_scene(s, dir);
+  for (const char* f : {"scene.json", "depth.exr", "albedo.exr", "normals.exr"})
+    EXPECT_TRUE(std::filesystem::exists(std::filesystem::path(dir) / f)) << f;
+  const SceneModel t = load_scene(dir);
+  EXPECT_EQ(t.width, s.width);
+  EXPECT_DOUBLE_EQ(t.fx, s.fx);
+  EXPECT_TRUE(t.R_world_from_cam.isApprox(s.R_world_from_cam, 1e-12));
+  EXPECT_EQ(cv::norm(t.depth, s.depth, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(t.albedo, s.albedo, cv::NORM_INF), 0.0);
+  ASSERT_EQ(t.lights.size(), s.lights.size());
+  for (size_t i = 0; i < s.lights.size(); ++i) {
+    EXPECT_EQ(t.lights[i].type, s.lights[i].type);
+    EXPECT_TRUE(t.lights[i].intensity.isApprox(s.lights[i].intensity));
+    if (s.lights[i].type == LightSource::Type::Ibl) {
+      EXPECT_EQ(cv::norm(t.lights[i].environment, s.lights[i].environment, cv::NORM_INF), 0.0);
+    }
+  }
+  EXPECT_EQ(t.reports.size(), s.reports.size());
+  EXPECT_EQ(t.source_photo, "room.png");
+}
+
+TEST(SceneModelFolder, MissingOrBrokenFolderIsAClearError) {
+  EXPECT_THROW(load_scene(::testing::TempDir() + "/no_such_scene"), std::runtime_error);
+  const std::string dir = ::testing::TempDir() + "/broken_scene";
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir + "/scene.json") << "{\"K\": 3}";
+  EXPECT_THROW(load_scene(dir), std::runtime_error);
+}
+
+}  // namespace
+}  // namespace propcam::inference
