@@ -8,5 +8,5 @@ cmake --preset release
 cmake --build --preset release -j "$(nproc)" --target propcam
 mkdir -p out
 ./build/release/firmware/propcam composite board/virtual/photos/living_room.png \
-  --prop sphere_plinth --at 330,380 --spp 16 --save-scene out/living_room_scene -o out/composite.png
+  --prop chair --at 320,350 --spp 64 --save-scene out/living_room_scene -o out/composite.png
 echo "demo: open out/composite.png (scene model in out/living_room_scene/)"
