@@ -262,19 +262,9 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   mesh_options.step_pixels = 1;
   scene.add_mesh(render::mesh_from_depth(fit_depth, fit_albedo, fit_camera, mesh_options), render::Layer::Background);
   scene.commit();
-  render::LightRig rig;
-  for (const auto& l : out.lights) {
-    if (l.type == LightSource::Type::Area) {
-      render::AreaLight a;
-      a.corner = l.corner.cast<float>();
-      a.edge_u = l.edge_u.cast<float>();
-      a.edge_v = l.edge_v.cast<float>();
-      a.radiance = Eigen::Vector3f::Ones();
-      rig.area_lights.push_back(a);
-    } else {
-      rig.environment = std::make_shared<render::EnvironmentLight>(l.environment);
-    }
-  }
+  // Area lights first, the environment last: the same order as out.lights,
+  // so basis render i belongs to out.lights[i].
+  const render::LightRig rig = make_light_rig(out.lights, true);
   render::RenderSettings settings;
   settings.samples_per_pixel = options.fit_samples_per_pixel;
   settings.max_bounces = options.fit_bounces;

@@ -64,10 +64,10 @@ render::PinholeCamera SceneModel::camera() const {
   return cam;
 }
 
-render::LightRig SceneModel::light_rig() const {
+render::LightRig make_light_rig(const std::vector<LightSource>& lights, bool unit_intensity) {
   render::LightRig rig;
   for (const LightSource& l : lights) {
-    const Eigen::Vector3f intensity = l.intensity.cast<float>();
+    const Eigen::Vector3f intensity = unit_intensity ? Eigen::Vector3f::Ones() : Eigen::Vector3f(l.intensity.cast<float>());
     if (l.type == LightSource::Type::Area) {
       render::AreaLight a;
       a.corner = l.corner.cast<float>();
@@ -81,6 +81,8 @@ render::LightRig SceneModel::light_rig() const {
   }
   return rig;
 }
+
+render::LightRig SceneModel::light_rig() const { return make_light_rig(lights); }
 
 void SceneModel::validate() const {
   if (width <= 0 || height <= 0) throw std::runtime_error("scene model: no image size");

@@ -66,6 +66,10 @@ struct SceneModel {
   void validate() const;
 };
 
+// The renderer's view of a list of lights: area quads, then at most one
+// environment. With `unit_intensity` every light gets intensity 1 (basis renders).
+render::LightRig make_light_rig(const std::vector<LightSource>& lights, bool unit_intensity = false);
+
 void save_scene(const SceneModel& scene, const std::string& folder);
 SceneModel load_scene(const std::string& folder);
 
