@@ -150,3 +150,30 @@ TEST(Cli, BenchReportsStagesAndPlots) {
 }
 
 }  // namespace
+
+namespace {
+
+// A real photograph (OpenCV's sample façade, installed from Debian's opencv-doc).
+TEST(CliRealPhoto, InfersAndCompositesOnAStreetFacade) {
+  const std::string photo = "/usr/share/doc/opencv-doc/examples/data/building.jpg";
+  if (!fs::exists(photo)) GTEST_SKIP() << photo << " missing: install opencv-doc (scripts/setup.sh does)";
+  const std::string scene = temp("building_scene");
+  CliRun r = propcam("infer " + photo + " -o " + scene + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const json reports = json_tail(r.out)["reports"];
+  std::string camera_case;
+  for (const auto& rep : reports)
+    if (rep["stage"] == "camera") camera_case = rep["why"];
+  EXPECT_EQ(camera_case, "three_vanishing_points");
+  const std::string out = temp("building.png");
+  r = propcam("composite " + photo + " --scene " + scene + " --prop chair --at 250,585 --spp 2 -o " + out);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const cv::Mat before = propcam::capture::load_photo_linear(photo);
+  const cv::Mat after = propcam::capture::load_photo_linear(out);
+  ASSERT_EQ(after.size(), before.size());
+  cv::Mat diff;
+  cv::absdiff(before, after, diff);
+  EXPECT_GT(cv::countNonZero(diff.reshape(1) > 0.05), 50) << "the prop is visible";
+}
+
+}  // namespace
