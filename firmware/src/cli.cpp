@@ -13,6 +13,7 @@
 #include "progress.h"
 #include "propcam/capture/image_file.h"
 #include "propcam/inference/infer.h"
+#include "propcam/render/panorama.h"
 #include "propcam/render/props.h"
 #include "synthetic_truth.h"
 
@@ -218,6 +219,37 @@ int cmd_synth(const SynthArgs& a) {
   return 0;
 }
 
+struct ViewArgs {
+  std::string panorama, out, size = "640x480";
+  double fov = 60, yaw = 0, pitch = 0, roll = 0, camera_height = 1.5;
+  double exposure_ev = 0;
+  bool json_out = false;
+};
+
+// A rectilinear "photo" cut from an HDR panorama, exposed like a camera would.
+int cmd_view(const ViewArgs& a) {
+  render::ViewSpec spec;
+  if (!parse_pair(a.size, spec.width, spec.height, 'x') || spec.width < 1 || spec.height < 1)
+    throw std::invalid_argument("--size expects WxH");
+  spec.horizontal_fov_deg = a.fov;
+  spec.yaw_deg = a.yaw;
+  spec.pitch_deg = a.pitch;
+  spec.roll_deg = a.roll;
+  spec.camera_height_m = a.camera_height;
+  const render::PinholeCamera camera = render::view_camera(spec);
+  cv::Mat view = render::rectilinear_view(capture::read_image_float(a.panorama), camera);
+  const double scale = render::auto_expose(view) * std::exp2(a.exposure_ev);
+  if (a.exposure_ev != 0) view *= std::exp2(a.exposure_ev);
+  capture::write_image(a.out, view);
+  if (a.json_out) {
+    json k = {{"fx", camera.fx}, {"fy", camera.fy}, {"cx", camera.cx}, {"cy", camera.cy}};
+    json r = json::array();
+    for (int i = 0; i < 3; ++i) r.push_back({camera.R_world_from_cam(i, 0), camera.R_world_from_cam(i, 1), camera.R_world_from_cam(i, 2)});
+    std::cout << json{{"output", a.out}, {"K", k}, {"R_world_from_cam", r}, {"exposure_scale", scale}}.dump(2) << std::endl;
+  }
+  return 0;
+}
+
 }  // namespace
 
 int run_cli(int argc, char** argv) {
@@ -279,6 +311,19 @@ int run_cli(int argc, char** argv) {
   bench->add_option("--plot", bench_options.plot_dir, "Write PNG plots (gnuplot) to this folder");
   bench->add_flag("--json", bench_json, "Machine-readable output");
 
+  ViewArgs view_args;
+  auto* view = app.add_subcommand("view", "Cut a rectilinear photo with a known camera out of an HDR panorama");
+  view->add_option("panorama", view_args.panorama, "Equirectangular panorama (EXR, HDR, PNG, ...)")
+      ->required()->check(CLI::ExistingFile);
+  view->add_option("-o,--output", view_args.out, "Photo to write")->required();
+  view->add_option("--size", view_args.size, "WxH");
+  view->add_option("--fov", view_args.fov, "Horizontal field of view, degrees")->check(CLI::Range(1.0, 170.0));
+  view->add_option("--yaw", view_args.yaw, "Degrees counter-clockwise from above; 0 looks at the panorama's centre column");
+  view->add_option("--pitch", view_args.pitch, "Degrees, positive looks up");
+  view->add_option("--roll", view_args.roll, "Degrees about the view axis");
+  view->add_option("--exposure", view_args.exposure_ev, "Exposure change in stops after auto exposure");
+  view->add_flag("--json", view_args.json_out, "Print the camera as JSON");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -289,6 +334,7 @@ int run_cli(int argc, char** argv) {
     if (*composite) return cmd_composite(comp);
     if (*props) return cmd_props(props_json);
     if (*synth) return cmd_synth(synth_args);
+    if (*view) return cmd_view(view_args);
     if (*bench) {
       if (!parse_pair(bench_size, bench_options.width, bench_options.height, 'x') || bench_options.width < 32 ||
           bench_options.height < 32)

@@ -2,6 +2,8 @@
 
 #include <stdexcept>
 
+#include "propcam/inference/sky.h"
+
 namespace propcam::inference {
 
 SceneModel infer_scene(const cv::Mat& photo_linear, const InferenceOptions& options) {
@@ -54,12 +56,14 @@ SceneModel infer_scene(const cv::Mat& photo_linear, const InferenceOptions& opti
 
   stage("scene_class");
   StageReport class_report;
-  scene.indoor = classify_indoor(photo, class_report);
+  SkyEstimate sky;
+  scene.indoor = classify_indoor(photo, scene.camera(), class_report, &sky);
   scene.reports.push_back(class_report);
 
   stage("geometry");
   const render::PinholeCamera camera = scene.camera();
-  Layout layout = estimate_layout(camera, lines, cam.line_labels, scene.indoor, options.layout);
+  Layout layout = estimate_layout(camera, lines, cam.line_labels, scene.indoor, options.layout,
+                                  scene.indoor ? cv::Mat() : sky.mask);
   scene.depth = layout.depth;
   scene.normals = layout.normals;
   scene.planes = layout.planes;
@@ -71,7 +75,8 @@ SceneModel infer_scene(const cv::Mat& photo_linear, const InferenceOptions& opti
   scene.reports.push_back(albedo_report);
 
   stage("lighting");
-  LightingEstimate lighting = estimate_lighting(photo, scene.depth, scene.albedo, camera, scene.planes, scene.indoor, options.lighting);
+  LightingEstimate lighting = estimate_lighting(photo, scene.depth, scene.albedo, camera, scene.planes, scene.indoor,
+                                                options.lighting, scene.indoor ? nullptr : &sky);
   scene.lights = std::move(lighting.lights);
   for (auto& r : lighting.reports) scene.reports.push_back(std::move(r));
   scene.gamma = 2.2;  // photos are linearised with the sRGB curve; fitting it is a later issue

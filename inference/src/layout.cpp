@@ -3,7 +3,10 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <stdexcept>
 #include <opencv2/imgproc.hpp>
+
+#include "propcam/render/depth_mesh.h"
 
 namespace propcam::inference {
 namespace {
@@ -25,31 +28,12 @@ double percentile(std::vector<double> v, double p) {
 
 }  // namespace
 
-bool classify_indoor(const cv::Mat& photo_linear, StageReport& report) {
-  const auto start = std::chrono::steady_clock::now();
-  report.stage = "scene_class";
-  const int band = std::max(1, photo_linear.rows / 6);
-  const cv::Mat top = photo_linear.rowRange(0, band);
-  cv::Mat grey;
-  cv::cvtColor(top, grey, cv::COLOR_RGB2GRAY);
-  const double brightness = cv::mean(grey)[0];
-  const cv::Scalar rgb = cv::mean(top);
-  cv::Mat gx, gy;
-  cv::Sobel(grey, gx, CV_32F, 1, 0);
-  cv::Sobel(grey, gy, CV_32F, 0, 1);
-  const double texture = (cv::mean(cv::abs(gx))[0] + cv::mean(cv::abs(gy))[0]) / std::max(brightness, 1e-3);
-  const bool bluish = rgb[2] > rgb[0] * 1.05;
-  const bool sky = brightness > 0.3 && texture < 0.35 && (bluish || brightness > 0.6);
-  report.usable = true;
-  report.why = sky ? "bright smooth top band: outdoor" : "indoor";
-  report.details = {{"top_brightness", brightness}, {"top_texture", texture}, {"bluish", bluish}};
-  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  return !sky;
-}
-
 Layout estimate_layout(const render::PinholeCamera& camera, const std::vector<LineSegment>& lines,
-                       const std::vector<int>& line_labels, bool indoor, const LayoutOptions& options) {
+                       const std::vector<int>& line_labels, bool indoor, const LayoutOptions& options,
+                       const cv::Mat& sky_mask) {
   const auto start = std::chrono::steady_clock::now();
+  if (!sky_mask.empty() && (sky_mask.type() != CV_8U || sky_mask.cols != camera.width || sky_mask.rows != camera.height))
+    throw std::invalid_argument("estimate_layout: the sky mask must be CV_8U at the camera's size");
   Layout layout;
   const double h = camera.center_world.y();
   // Floor contacts: the lower end of each vertical edge seen below the horizon.
@@ -105,7 +89,9 @@ Layout estimate_layout(const render::PinholeCamera& camera, const std::vector<Li
         if (along > kMinVerticalComponent) consider(wall[a] / along, -axes[a]);
       }
       const double z = std::min(t * d.dot(forward), options.max_depth_m);
-      layout.depth.at<float>(y, x) = static_cast<float>(std::max(z, 1e-3));
+      const bool sky = !sky_mask.empty() && sky_mask.at<uint8_t>(y, x) != 0;
+      layout.depth.at<float>(y, x) = sky ? render::kSkyDepthM : static_cast<float>(std::max(z, 1e-3));
+      if (sky) n = -d;
       layout.normals.at<cv::Vec3f>(y, x) = cv::Vec3f(static_cast<float>(n.x()), static_cast<float>(n.y()),
                                                      static_cast<float>(n.z()));
     }

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <opencv2/imgproc.hpp>
 
@@ -23,6 +24,14 @@ constexpr double kMaxAlbedo = 0.95;
 // Source quads are pulled this far toward the camera off the surface they were seen on.
 constexpr double kSourceStandOffM = 0.02;
 constexpr double kSaturatedLinear = 0.98;
+// Basis renders with less energy than this (absolute, or relative to the
+// brightest basis) light nothing the fit can see.
+constexpr double kMinBasisEnergy = 1e-12;
+constexpr double kMinRelativeBasisEnergy = 1e-12;
+// The per-channel balance may tint the fitted lights this much, no more.
+constexpr double kMinChannelGain = 0.25, kMaxChannelGain = 4.0;
+// No channel of a seen source's colour drops below this share of its luminance.
+constexpr double kMinSourceChannel = 0.05;
 
 double seconds_since(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
@@ -78,6 +87,47 @@ LightSource quad_from_points(const std::vector<Vector3d>& points, const Vector3d
   return l;
 }
 
+struct NnlsResult {
+  Eigen::VectorXd weights;
+  int iterations = 0;
+  bool converged = false;
+};
+
+// min |Rw - y|^2 + sparsity * sum_i w_i |r_i| |r_max|, lower <= w <= upper, by
+// cyclic coordinate descent on the normal equations A = R'R, b = R'y. The L1
+// weight acts on each basis render normalised to unit energy, so a faint but
+// right source (a far sun) is not priced out by a bright one.
+NnlsResult solve_nnls_l1(const Eigen::MatrixXd& A, const Eigen::VectorXd& b, const std::vector<double>& lower,
+                         const std::vector<double>& upper, double sparsity, int max_iterations, double tolerance) {
+  const int k = static_cast<int>(b.size());
+  const double scale = std::max(k > 0 ? A.diagonal().maxCoeff() : 0.0, kMinBasisEnergy);
+  NnlsResult out;
+  out.weights = Eigen::VectorXd::Zero(k);
+  for (int i = 0; i < k; ++i) out.weights[i] = std::max(0.0, lower[i]);
+  Eigen::VectorXd& w = out.weights;
+  for (; out.iterations < max_iterations && !out.converged; ++out.iterations) {
+    double change = 0, size = 0;
+    for (int i = 0; i < k; ++i) {
+      if (A(i, i) <= kMinRelativeBasisEnergy * scale) continue;  // a light that lights nothing stays off
+      const double rest = b[i] - A.row(i).dot(w) + A(i, i) * w[i];
+      const double penalty = sparsity * std::sqrt(scale * A(i, i));
+      const double lo = std::max(0.0, lower[i]);
+      const double updated = std::clamp((rest - penalty) / A(i, i), lo, std::max(lo, upper[i]));
+      change = std::max(change, std::abs(updated - w[i]));
+      size = std::max(size, std::abs(updated));
+      w[i] = updated;
+    }
+    out.converged = change <= tolerance * std::max(size, kMinBasisEnergy);
+  }
+  return out;
+}
+
+Vector3d unit_luminance_colour(const Vector3d& rgb) {
+  const double lum = 0.2126 * rgb.x() + 0.7152 * rgb.y() + 0.0722 * rgb.z();
+  if (!(lum > 0)) return Vector3d::Ones();
+  return (rgb / lum).cwiseMax(kMinSourceChannel);
+}
+
 }  // namespace
 
 cv::Mat estimate_albedo(const cv::Mat& photo_linear, const AlbedoOptions& options, StageReport& report) {
@@ -124,6 +174,19 @@ cv::Mat environment_from_photo(const cv::Mat& photo_linear, const render::Pinhol
       const double v = std::clamp((camera.fy * dc.y() / dc.z() + camera.cy + 0.5) * sy, 0.0, small.rows - 1.0);
       env.at<cv::Vec3f>(y, x) = small.at<cv::Vec3f>(static_cast<int>(v), static_cast<int>(u));
     }
+  return env;
+}
+
+cv::Mat environment_with_sky(const cv::Mat& photo_linear, const render::PinholeCamera& camera, int width,
+                             const SkyEstimate& sky) {
+  cv::Mat env = environment_from_photo(photo_linear, camera, width);
+  const cv::Vec3f colour(static_cast<float>(sky.mean_colour.x()), static_cast<float>(sky.mean_colour.y()),
+                         static_cast<float>(sky.mean_colour.z()));
+  for (int y = 0; y < env.rows; ++y) {
+    const float up = render::EnvironmentLight::uv_to_direction(0.5f, (y + 0.5f) / env.rows).y();
+    if (up <= 0.f) continue;
+    for (int x = 0; x < env.cols; ++x) env.at<cv::Vec3f>(y, x) = colour;
+  }
   return env;
 }
 
@@ -191,7 +254,7 @@ std::vector<LightSource> out_of_view_candidates(const render::PinholeCamera& cam
 
 LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& depth, const cv::Mat& albedo,
                                    const render::PinholeCamera& camera, const std::vector<SupportPlane>& planes,
-                                   bool indoor, const LightingOptions& options) {
+                                   bool indoor, const LightingOptions& options, const SkyEstimate* sky) {
   LightingEstimate out;
   // --- Visible sources: bright connected regions, lifted to 3D with depth.
   auto start = Clock::now();
@@ -210,39 +273,64 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   std::sort(regions.rbegin(), regions.rend());
   if (static_cast<int>(regions.size()) > options.max_area_lights) regions.resize(options.max_area_lights);
   out.source_mask = cv::Mat::zeros(photo_linear.size(), CV_8U);
+  std::vector<Vector3d> colours;  // per light, unit luminance: what the fit may not change
+  int on_floor = 0;
   for (const auto& [area, label] : regions) {
     std::vector<Vector3d> points;
+    std::vector<cv::Point> pixels;
+    Vector3d colour_sum = Vector3d::Zero(), centroid = Vector3d::Zero();
     for (int y = 0; y < labels.rows; ++y)
       for (int x = 0; x < labels.cols; ++x) {
         if (labels.at<int>(y, x) != label) continue;
-        out.source_mask.at<uint8_t>(y, x) = 255;
         const double d = depth.at<float>(y, x);
+        if (!(d < render::kSkyDepthM)) continue;  // sky is the environment's
+        pixels.push_back({x, y});
+        const cv::Vec3f c = photo_linear.at<cv::Vec3f>(y, x);
+        colour_sum += Vector3d(c[0], c[1], c[2]);
         const Vector3d dir_cam((x - camera.cx) / camera.fx, (y - camera.cy) / camera.fy, 1.0);
         points.push_back(camera.center_world + camera.R_world_from_cam * (dir_cam * d));
+        centroid += points.back();
       }
+    if (points.empty()) continue;
+    // A bright patch lying on the floor is lit, not a lamp (sunlight through
+    // a window, a reflection): it stays part of the photo the fit explains.
+    if (centroid.y() / points.size() < options.min_source_height_m) {
+      ++on_floor;
+      continue;
+    }
+    for (const auto& px : pixels) out.source_mask.at<uint8_t>(px) = 255;
     out.lights.push_back(quad_from_points(points, camera.center_world));
+    colours.push_back(unit_luminance_colour(colour_sum));
   }
   StageReport sources;
   sources.stage = "light_sources";
   sources.usable = true;
-  sources.why = regions.empty() ? "no bright region: light comes from outside the frame"
-                                : std::to_string(regions.size()) + " bright regions above " + std::to_string(threshold);
+  sources.why = out.lights.empty() ? "no bright region above the floor: light comes from outside the frame"
+                                   : std::to_string(out.lights.size()) + " bright regions above " + std::to_string(threshold);
   sources.seconds = seconds_since(start);
-  sources.details = {{"threshold", threshold}, {"regions", regions.size()}};
+  sources.details = {{"threshold", threshold}, {"regions", regions.size()}, {"rejected_on_floor", on_floor}};
   out.reports.push_back(sources);
 
   const size_t visible_sources = out.lights.size();
-  for (auto& candidate : out_of_view_candidates(camera, planes, indoor, options)) out.lights.push_back(candidate);
+  for (auto& candidate : out_of_view_candidates(camera, planes, indoor, options)) {
+    out.lights.push_back(candidate);
+    colours.push_back(Vector3d::Ones());  // unseen: white, tinted only by the global balance below
+  }
 
   // --- Out-of-view light: the photo wrapped onto a sphere.
   start = Clock::now();
   LightSource ibl;
   ibl.type = LightSource::Type::Ibl;
-  ibl.environment = environment_from_photo(photo_linear, camera, options.environment_width);
+  // A visible sky is a radiance measurement: the environment's weight is 1.
+  const bool sky_calibrated = sky && sky->fraction > 0 && sky->mean_colour.maxCoeff() > 0;
+  ibl.environment = sky_calibrated ? environment_with_sky(photo_linear, camera, options.environment_width, *sky)
+                                   : environment_from_photo(photo_linear, camera, options.environment_width);
   out.lights.push_back(ibl);
+  colours.push_back(Vector3d::Ones());  // the map carries its own colours
   StageReport env;
   env.stage = "environment";
-  env.why = "photo wrapped onto a sphere (Khan et al.); IBL matching in a later issue";
+  env.why = sky_calibrated ? "sky colour above the horizon, photo wrapped below (measured: weight 1)"
+                           : "photo wrapped onto a sphere (Khan et al.); IBL matching in a later issue";
   env.seconds = seconds_since(start);
   out.reports.push_back(env);
 
@@ -277,45 +365,66 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   for (int y = 0; y < fit_h; ++y)
     for (int x = 0; x < fit_w; ++x) {
       const cv::Vec3f c = fit_photo.at<cv::Vec3f>(y, x);
-      if (fit_mask.at<uint8_t>(y, x) == 0 && c[0] < kSaturatedLinear && c[1] < kSaturatedLinear && c[2] < kSaturatedLinear)
+      if (fit_mask.at<uint8_t>(y, x) == 0 && fit_depth.at<float>(y, x) < render::kSkyDepthM && c[0] < kSaturatedLinear && c[1] < kSaturatedLinear && c[2] < kSaturatedLinear)
         used.push_back({x, y});
     }
-  int max_iterations_used = 0;
-  bool converged = true;
-  double residual = 0, signal = 0;
-  std::vector<Eigen::Vector3d> weights(k, Eigen::Vector3d::Zero());
-  for (int c = 0; c < 3; ++c) {
-    Eigen::MatrixXd A = Eigen::MatrixXd::Zero(k, k);
-    Eigen::VectorXd b = Eigen::VectorXd::Zero(k);
+  // Channel c in 0..2, or 3 for luminance.
+  auto basis_value = [&](int i, const cv::Point& p, int c) -> double {
+    const cv::Vec3f v = basis[i].at<cv::Vec3f>(p);
+    return c < 3 ? v[c] : 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2];
+  };
+  auto photo_value = [&](const cv::Point& p, int c) -> double {
+    const cv::Vec3f v = fit_photo.at<cv::Vec3f>(p);
+    return c < 3 ? v[c] : 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2];
+  };
+  auto normal_equations = [&](int c, Eigen::MatrixXd& A, Eigen::VectorXd& b) {
+    A = Eigen::MatrixXd::Zero(k, k);
+    b = Eigen::VectorXd::Zero(k);
+    Eigen::VectorXd r(k);
     for (const auto& p : used) {
-      Eigen::VectorXd r(k);
-      for (int i = 0; i < k; ++i) r[i] = basis[i].at<cv::Vec3f>(p)[c];
+      for (int i = 0; i < k; ++i) r[i] = basis_value(i, p, c);
       A += r * r.transpose();
-      b += r * static_cast<double>(fit_photo.at<cv::Vec3f>(p)[c]);
+      b += r * photo_value(p, c);
     }
-    const double scale = std::max(A.diagonal().maxCoeff(), 1e-12);
-    Eigen::VectorXd w = Eigen::VectorXd::Zero(k);
-    int it = 0;
-    bool done = false;
-    for (; it < options.max_fit_iterations && !done; ++it) {
-      double change = 0, size = 0;
-      for (int i = 0; i < k; ++i) {
-        if (A(i, i) <= 1e-12 * scale) continue;  // a light that lights nothing stays off
-        const double rest = b[i] - A.row(i).dot(w) + A(i, i) * w[i];
-        const double updated = std::max(0.0, (rest - options.sparsity * scale) / A(i, i));
-        change = std::max(change, std::abs(updated - w[i]));
-        size = std::max(size, std::abs(updated));
-        w[i] = updated;
-      }
-      done = change <= options.fit_tolerance * std::max(size, 1e-12);
+  };
+  std::vector<double> lower(k, 0.0), upper(k, std::numeric_limits<double>::infinity());
+  if (sky_calibrated) lower[k - 1] = upper[k - 1] = 1.0;  // the environment is last, and measured
+  // Which lights and how bright: a sparse fit on luminance (fitting each
+  // channel on its own lets a light turn a colour no lamp has, e.g. a
+  // blue-only sun).
+  Eigen::MatrixXd A;
+  Eigen::VectorXd b;
+  normal_equations(3, A, b);
+  NnlsResult chosen = solve_nnls_l1(A, b, lower, upper, options.sparsity, options.max_fit_iterations, options.fit_tolerance);
+  std::vector<bool> active(k);
+  for (int i = 0; i < k; ++i) active[i] = chosen.weights[i] > 0;
+  int max_iterations_used = chosen.iterations;
+  bool converged = chosen.converged;
+  double residual = 0, signal = 0;
+  // Colour: each light keeps its own colour (a seen source the colour it has
+  // in the photo, unseen ones white) and one gain per channel balances the
+  // fitted lights against the photo, like a white balance. A measured sky
+  // keeps its measured weight.
+  const int fixed = sky_calibrated ? k - 1 : -1;
+  std::vector<Eigen::Vector3d> weights(k, Eigen::Vector3d::Zero());
+  Eigen::Vector3d gains = Eigen::Vector3d::Ones();
+  for (int c = 0; c < 3; ++c) {
+    double oo = 0, oy = 0;
+    for (const auto& p : used) {
+      double others = 0;
+      for (int i = 0; i < k; ++i)
+        if (i != fixed && active[i]) others += chosen.weights[i] * colours[i][c] * basis_value(i, p, c);
+      const double target = photo_value(p, c) - (fixed >= 0 ? basis_value(fixed, p, c) : 0.0);
+      oo += others * others;
+      oy += others * target;
     }
-    max_iterations_used = std::max(max_iterations_used, it);
-    converged = converged && done;
-    for (int i = 0; i < k; ++i) weights[i][c] = w[i];
+    gains[c] = oo > kMinBasisEnergy ? std::clamp(oy / oo, kMinChannelGain, kMaxChannelGain) : 1.0;
+    for (int i = 0; i < k; ++i)
+      weights[i][c] = i == fixed ? 1.0 : (active[i] ? chosen.weights[i] * colours[i][c] * gains[c] : 0.0);
     for (const auto& p : used) {
       double predicted = 0;
-      for (int i = 0; i < k; ++i) predicted += w[i] * basis[i].at<cv::Vec3f>(p)[c];
-      const double observed = fit_photo.at<cv::Vec3f>(p)[c];
+      for (int i = 0; i < k; ++i) predicted += weights[i][c] * basis_value(i, p, c);
+      const double observed = photo_value(p, c);
       residual += (observed - predicted) * (observed - predicted);
       signal += observed * observed;
     }

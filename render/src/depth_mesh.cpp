@@ -37,7 +37,7 @@ Mesh mesh_from_depth(const cv::Mat& depth, const cv::Mat& albedo, const PinholeC
       const double u = xs[i] + (i == 0 ? -0.5 : (i == gw - 1 ? 0.5 : 0.0));
       const double v = ys[j] + (j == 0 ? -0.5 : (j == gh - 1 ? 0.5 : 0.0));
       const float d = depth.at<float>(ys[j], xs[i]);
-      if (!(d > 0.f) || !std::isfinite(d)) continue;
+      if (!(d > 0.f) || !(d < kSkyDepthM)) continue;
       const Eigen::Vector3d dir_cam((u - camera.cx) / camera.fx, (v - camera.cy) / camera.fy, 1.0);
       const Eigen::Vector3d p = camera.center_world + camera.R_world_from_cam * (dir_cam * d);
       index[static_cast<size_t>(j) * gw + i] = static_cast<int>(mesh.positions.size());

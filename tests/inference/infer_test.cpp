@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "propcam/inference/infer.h"
+#include "propcam/inference/sky.h"
 
 namespace propcam::inference {
 namespace {
@@ -109,6 +110,56 @@ TEST(SceneModelFolder, MissingOrBrokenFolderIsAClearError) {
   std::filesystem::create_directories(dir);
   std::ofstream(dir + "/scene.json") << "{\"K\": 3}";
   EXPECT_THROW(load_scene(dir), std::runtime_error);
+}
+
+}  // namespace
+}  // namespace propcam::inference
+
+namespace propcam::inference {
+namespace {
+
+render::PinholeCamera level_camera(int w, int h) {
+  render::PinholeCamera c;
+  c.width = w;
+  c.height = h;
+  c.fx = c.fy = 0.8 * w;
+  c.cx = (w - 1) / 2.0;
+  c.cy = (h - 1) / 2.0;
+  c.R_world_from_cam << 1, 0, 0, 0, -1, 0, 0, 0, -1;
+  c.center_world = {0, 1.5, 0};
+  return c;
+}
+
+TEST(Sky, ABlueSmoothTopOverTexturedGroundIsOutdoor) {
+  cv::Mat photo(120, 160, CV_32FC3);
+  cv::RNG rng(3);
+  for (int y = 0; y < photo.rows; ++y)
+    for (int x = 0; x < photo.cols; ++x)
+      photo.at<cv::Vec3f>(y, x) = y < 50 ? cv::Vec3f(0.3f, 0.5f, 0.9f)
+                                          : cv::Vec3f(0.2f, 0.25f, 0.1f) * static_cast<float>(rng.uniform(0.5, 1.5));
+  StageReport report;
+  SkyEstimate sky;
+  EXPECT_FALSE(classify_indoor(photo, level_camera(160, 120), report, &sky));
+  EXPECT_GT(sky.fraction, 0.3);
+  EXPECT_TRUE(sky.blue);
+  EXPECT_EQ(sky.mask.size(), photo.size());
+}
+
+TEST(Sky, HardCasesGiveAnAnswerNotACrash) {
+  StageReport report;
+  for (const cv::Mat& photo : {cv::Mat(cv::Size(64, 48), CV_32FC3, cv::Scalar(0, 0, 0)),
+                               cv::Mat(cv::Size(64, 48), CV_32FC3, cv::Scalar(1, 1, 1)),
+                               cv::Mat(cv::Size(1, 1), CV_32FC3, cv::Scalar(0.5, 0.5, 0.5)),
+                               cv::Mat(cv::Size(3, 2), CV_32FC3, cv::Scalar(0.2, 0.3, 0.9))}) {
+    SkyEstimate sky;
+    const bool indoor = classify_indoor(photo, level_camera(photo.cols, photo.rows), report, &sky);
+    EXPECT_TRUE(std::isfinite(sky.fraction));
+    EXPECT_TRUE(sky.mean_colour.allFinite());
+    EXPECT_EQ(classify_indoor(photo, level_camera(photo.cols, photo.rows), report), indoor) << "deterministic";
+  }
+  SkyEstimate black;
+  classify_indoor(cv::Mat(cv::Size(64, 48), CV_32FC3, cv::Scalar(0, 0, 0)), level_camera(64, 48), report, &black);
+  EXPECT_EQ(black.fraction, 0.0) << "a black frame shows no sky";
 }
 
 }  // namespace

@@ -1,6 +1,7 @@
 // Geometry stage (first cut): a gravity-aligned box of support planes (floor,
 // walls, ceiling indoors) fitted to where vertical scene edges meet the floor,
-// giving depth and normals for every pixel.
+// giving depth and normals for every pixel. Pixels of `sky_mask` (CV_8U,
+// non-zero on sky) get render::kSkyDepthM: light, not geometry.
 #pragma once
 
 #include <opencv2/core.hpp>
@@ -29,9 +30,7 @@ struct Layout {
 };
 
 Layout estimate_layout(const render::PinholeCamera& camera, const std::vector<LineSegment>& lines,
-                       const std::vector<int>& line_labels, bool indoor, const LayoutOptions& options = {});
-
-// Indoor/outdoor by the top of the frame: a bright, smooth top band reads as sky.
-bool classify_indoor(const cv::Mat& photo_linear, StageReport& report);
+                       const std::vector<int>& line_labels, bool indoor, const LayoutOptions& options = {},
+                       const cv::Mat& sky_mask = cv::Mat());
 
 }  // namespace propcam::inference

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "propcam/inference/scene_model.h"
+#include "propcam/inference/sky.h"
 #include "propcam/render/camera.h"
 
 namespace propcam::inference {
@@ -25,6 +26,7 @@ struct LightingOptions {
   double bright_fraction_of_max = 0.8;  // a source is at least this bright relative to the brightest pixel
   double min_source_luminance = 0.6;    // and at least this bright (linear)
   double min_source_area_fraction = 2e-4;
+  double min_source_height_m = 0.1;     // bright regions lower than this lie on the floor: lit, not lamps
   int environment_width = 128;          // equirectangular, height = width/2
   int fit_width = 160;                  // basis renders' resolution
   int fit_samples_per_pixel = 8;
@@ -49,7 +51,7 @@ struct LightingEstimate {
 
 LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& depth, const cv::Mat& albedo,
                                    const render::PinholeCamera& camera, const std::vector<SupportPlane>& planes,
-                                   bool indoor, const LightingOptions& options);
+                                   bool indoor, const LightingOptions& options, const SkyEstimate* sky = nullptr);
 
 // Candidate sources outside the frame (unit intensity), for the fit to choose from.
 std::vector<LightSource> out_of_view_candidates(const render::PinholeCamera& camera,
@@ -59,5 +61,11 @@ std::vector<LightSource> out_of_view_candidates(const render::PinholeCamera& cam
 // Khan-style environment: directions in front of the camera see the (blurred)
 // photo, directions behind it its mirror image.
 cv::Mat environment_from_photo(const cv::Mat& photo_linear, const render::PinholeCamera& camera, int width);
+
+// Outdoors: the sky seen in the photo is a radiance measurement, so the upper
+// hemisphere takes the sky's colour and brightness; the lower hemisphere keeps
+// the Khan wrap of the photo (the ground).
+cv::Mat environment_with_sky(const cv::Mat& photo_linear, const render::PinholeCamera& camera, int width,
+                             const SkyEstimate& sky);
 
 }  // namespace propcam::inference

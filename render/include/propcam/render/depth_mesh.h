@@ -9,6 +9,9 @@
 
 namespace propcam::render {
 
+// Depth at or beyond this marks sky (or anything with no surface): no mesh there.
+constexpr float kSkyDepthM = 1.0e4f;
+
 struct DepthMeshOptions {
   int step_pixels = 2;  // grid spacing of the vertices
   // Triangles whose vertex depths differ by more than this ratio span a depth
@@ -16,7 +19,7 @@ struct DepthMeshOptions {
   float max_depth_ratio = 1.15f;
 };
 
-// `depth` is CV_32F metres along camera z (<= 0 or non-finite marks no data);
+// `depth` is CV_32F metres along camera z (<= 0, non-finite or >= kSkyDepthM marks no surface);
 // `albedo` is CV_32FC3 linear RGB of the same size, used as the mesh texture.
 Mesh mesh_from_depth(const cv::Mat& depth, const cv::Mat& albedo, const PinholeCamera& camera,
                      const DepthMeshOptions& options = {});
