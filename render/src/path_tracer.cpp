@@ -30,6 +30,11 @@ constexpr float kMaxSurvivalProbability = 0.95f;
 // Sample contributions are clamped to this luminance so a rare caustic path
 // cannot produce a white fleck (bias traded for variance, as in production renderers).
 constexpr float kMaxSampleLuminance = 64.f;
+// Light a prop adds to the photo's surfaces (bounce, reflected highlights,
+// caustics) is clamped per sample to this luminance, about the photo's white:
+// at interactive sample counts, a rare path from a floor pixel via a mirror
+// ball to a lamp otherwise shows as a white speck far from the prop.
+constexpr float kMaxBackgroundGainLuminance = 1.f;
 
 Eigen::Vector3f offset_origin(const Eigen::Vector3f& p, const Eigen::Vector3f& normal) {
   return p + normal * (kRayOffsetAbsolute + kRayOffsetRelative * p.cwiseAbs().maxCoeff());
@@ -296,7 +301,10 @@ DifferentialRender render_differential(const Scene& scene, const PinholeCamera& 
             const PathResult without = integrator.trace(ray.origin, ray.direction, rng_without, false);
             tile_rays += without.rays;
             ++tile_second;
-            change += with_prop.radiance - without.radiance;
+            Eigen::Vector3f delta = with_prop.radiance - without.radiance;
+            const float gain = 0.2126f * delta.x() + 0.7152f * delta.y() + 0.0722f * delta.z();
+            if (gain > kMaxBackgroundGainLuminance) delta *= kMaxBackgroundGainLuminance / gain;
+            change += delta;
           } else {
             ++tile_untouched;
           }
