@@ -135,7 +135,10 @@ json run_bench(const BenchOptions& options) {
   render::RenderSettings ref_settings;
   ref_settings.samples_per_pixel = options.reference_spp;
   ref_settings.seed = 999;
-  const CompositeResult reference = composite_prop(shot.photo_linear, truth, prop, placement, ref_settings);
+  CompositeOptions simulate_everything;
+  simulate_everything.cull_tiles = false;
+  const CompositeResult reference =
+      composite_prop(shot.photo_linear, truth, prop, placement, ref_settings, simulate_everything);
   cv::Mat affected;
   {
     cv::Mat diff;
@@ -157,6 +160,30 @@ json run_bench(const BenchOptions& options) {
                          {"untouched_fraction", st.camera_samples ? double(st.paths_prop_untouched) / st.camera_samples : 0.0}});
   }
   result["sweeps"]["render_spp"] = spp_sweep;
+
+  // Each skip against simulating everything, at the same samples: time
+  // saved, and error (whole image, vs the reference) added beyond the noise.
+  {
+    const cv::Mat everywhere(shot.photo_linear.size(), CV_8U, cv::Scalar(255));
+    render::RenderSettings s;
+    s.samples_per_pixel = options.skip_spp;
+    progress.stage("bench: render skips at " + std::to_string(options.skip_spp) + " spp");
+    const CompositeResult full = composite_prop(shot.photo_linear, truth, prop, placement, s, simulate_everything);
+    const CompositeResult culled = composite_prop(shot.photo_linear, truth, prop, placement, s);
+    const double noise = rmse_in_mask(full.composite_linear, reference.composite_linear, everywhere);
+    const double with_skip = rmse_in_mask(culled.composite_linear, reference.composite_linear, everywhere);
+    int culled_tiles = 0;
+    for (const auto& t : culled.tiles) culled_tiles += !t.affected;
+    result["skips"] = json::array({{{"skip", "tiles the prop cannot reach"},
+                                    {"spp", options.skip_spp},
+                                    {"seconds_full", full.render.stats.seconds},
+                                    {"seconds_with_skip", culled.render.stats.seconds},
+                                    {"tiles_skipped", culled_tiles},
+                                    {"tiles", culled.tiles.size()},
+                                    {"rmse_full", noise},
+                                    {"rmse_with_skip", with_skip},
+                                    {"error_added", with_skip - noise}}});
+  }
   result["render_reference"] = {{"spp", options.reference_spp}, {"seconds", reference.render.stats.seconds},
                                 {"affected_pixels", cv::countNonZero(affected)}};
   return result;
@@ -191,6 +218,15 @@ std::string format_bench(const json& r) {
   for (const auto& s : r["sweeps"]["render_spp"]) {
     std::snprintf(line, sizeof line, "  %4d  %7.3f  %8.5f  %6.2f  %5.1f%%\n", s["spp"].get<int>(), s["seconds"].get<double>(),
                   s["rmse_affected"].get<double>(), s["mrays"].get<double>(), 100.0 * s["untouched_fraction"].get<double>());
+    out << line;
+  }
+  out << "\nRender skips at equal samples (RMSE over the whole image vs the reference)\n"
+         "  skip                          spp  s_full  s_skip  tiles_skipped  rmse_full  rmse_skip\n";
+  for (const auto& s : r["skips"]) {
+    std::snprintf(line, sizeof line, "  %-28s %4d  %6.3f  %6.3f  %6d/%-6d  %9.5f  %9.5f\n",
+                  s["skip"].get<std::string>().c_str(), s["spp"].get<int>(), s["seconds_full"].get<double>(),
+                  s["seconds_with_skip"].get<double>(), s["tiles_skipped"].get<int>(), s["tiles"].get<int>(),
+                  s["rmse_full"].get<double>(), s["rmse_with_skip"].get<double>());
     out << line;
   }
   return out.str();

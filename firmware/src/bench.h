@@ -13,6 +13,7 @@ struct BenchOptions {
   uint64_t seed = 4;
   int reference_spp = 256;
   int max_spp = 64;
+  int skip_spp = 16;  // samples at which each render skip is compared with simulating everything
   std::string plot_dir;  // empty: no plots
   bool quiet = false;
 };

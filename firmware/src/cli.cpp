@@ -105,8 +105,48 @@ struct CompositeArgs {
   double height = 0, yaw = 0, camera_height = 1.5;
   int spp = 16, bounces = 4;
   uint64_t seed = 0x5eed;
-  bool json_out = false;
+  bool json_out = false, explain = false, no_cull = false;
 };
+
+// What the renderer decided to trace and to skip, and why.
+json render_plan_json(const CompositeResult& r) {
+  int culled = 0;
+  long culled_pixels = 0, pixels = 0;
+  for (const auto& t : r.tiles) {
+    pixels += t.rect.area();
+    if (!t.affected) {
+      ++culled;
+      culled_pixels += t.rect.area();
+    }
+  }
+  json shadows = json::array(), significant = json::array();
+  for (size_t i = 0; i < r.reach.pixels_in_shadow.size(); ++i) {
+    shadows.push_back(r.reach.pixels_in_shadow[i]);
+    significant.push_back(static_cast<bool>(r.reach.light_significant[i]));
+  }
+  return {{"tiles", r.tiles.size()},
+          {"tiles_culled", culled},
+          {"culled_pixel_share", pixels ? static_cast<double>(culled_pixels) / pixels : 0.0},
+          {"passes", r.passes.size()},
+          {"reach", {{"pixels_seeing_prop", r.reach.pixels_seen},
+                     {"pixels_near_prop", r.reach.pixels_near},
+                     {"pixels_in_shadow_per_area_light", shadows},
+                     {"area_light_significant", significant},
+                     {"seconds", r.reach.seconds}}}};
+}
+
+void print_render_plan(const json& plan) {
+  std::fprintf(stderr, "plan: %d of %d tiles traced; %d culled (%.0f%% of the pixels: the prop cannot reach them)\n",
+               plan["tiles"].get<int>() - plan["tiles_culled"].get<int>(), plan["tiles"].get<int>(),
+               plan["tiles_culled"].get<int>(), 100.0 * plan["culled_pixel_share"].get<double>());
+  const json& reach = plan["reach"];
+  std::fprintf(stderr, "  reach (%.3fs, tested every 2nd pixel): %d see the prop, %d near enough for its occlusion/bounce light\n",
+               reach["seconds"].get<double>(), reach["pixels_seeing_prop"].get<int>(), reach["pixels_near_prop"].get<int>());
+  for (size_t i = 0; i < reach["pixels_in_shadow_per_area_light"].size(); ++i)
+    std::fprintf(stderr, "  area light %zu: %s, %d in its shadow cone\n", i,
+                 reach["area_light_significant"][i].get<bool>() ? "casts shadows" : "too weak at the prop: no shadow traced",
+                 reach["pixels_in_shadow_per_area_light"][i].get<int>());
+}
 
 int cmd_composite(const CompositeArgs& a) {
   Progress progress(a.json_out);
@@ -138,7 +178,10 @@ int cmd_composite(const CompositeArgs& a) {
   settings.seed = a.seed;
   settings.progress = progress.fraction_printer("render");
   progress.stage("render: " + std::to_string(a.spp) + " spp, " + std::to_string(a.bounces) + " bounces");
-  const CompositeResult result = composite_prop(photo, scene, prop, placement, settings);
+  CompositeOptions options;
+  options.cull_tiles = !a.no_cull;
+  const CompositeResult result = composite_prop(photo, scene, prop, placement, settings, options);
+  const json plan = render_plan_json(result);
   capture::write_image(a.out, result.composite_linear);
   const auto& st = result.render.stats;
   const double skipped = st.camera_samples ? static_cast<double>(st.paths_prop_untouched) / st.camera_samples : 0.0;
@@ -151,11 +194,13 @@ int cmd_composite(const CompositeArgs& a) {
                   {"samples_per_pixel", a.spp},
                   {"rays", st.rays},
                   {"samples_untouched_by_prop", skipped},
+                  {"plan", plan},
                   {"total_seconds", progress.elapsed()}};
   if (a.json_out) std::cout << summary.dump(2) << std::endl;
   else {
-    std::fprintf(stderr, "render %.2fs, %.1f Mrays, %.0f%% of samples untouched by the prop (no second path)\n",
+    std::fprintf(stderr, "render %.2fs, %.1f Mrays, %.0f%% of traced samples untouched by the prop (no second path)\n",
                  st.seconds, st.rays / 1e6, 100.0 * skipped);
+    if (a.explain) print_render_plan(plan);
     progress.stage("wrote " + a.out);
   }
   return 0;
@@ -285,6 +330,8 @@ int run_cli(int argc, char** argv) {
   composite->add_option("--save-scene", comp.save_scene, "Also write the inferred scene folder here");
   composite->add_option("-o,--output", comp.out, "Composite image to write (PNG, JPEG or EXR)")->required();
   composite->add_flag("--json", comp.json_out, "Machine-readable summary on stdout");
+  composite->add_flag("--explain", comp.explain, "Print what the renderer traced and skipped, and why");
+  composite->add_flag("--no-cull", comp.no_cull, "Trace every tile (to measure what culling saves)");
 
   bool props_json = false;
   auto* props = app.add_subcommand("props", "List the preset props");

@@ -38,7 +38,7 @@ double natural_height(const std::string& name_or_file, const render::Mesh& mesh)
 
 CompositeResult composite_prop(const cv::Mat& photo_linear, const inference::SceneModel& scene,
                                const render::Mesh& prop, const render::PropPlacement& placement,
-                               const render::RenderSettings& settings) {
+                               const render::RenderSettings& settings, const CompositeOptions& options) {
   if (photo_linear.cols != scene.width || photo_linear.rows != scene.height)
     throw std::invalid_argument("the scene model was inferred from a photo of another size (" +
                                 std::to_string(scene.width) + "x" + std::to_string(scene.height) + ")");
@@ -56,12 +56,27 @@ CompositeResult composite_prop(const cv::Mat& photo_linear, const inference::Sce
   result.placed = render::place_prop(prop, camera, support, placement);
   render::Mesh placed_mesh = prop;
   placed_mesh.transform(result.placed.world_from_prop);
+  const Eigen::AlignedBox3f prop_bounds = placed_mesh.bounds();
   world.add_mesh(std::move(placed_mesh), render::Layer::Prop);
   world.commit();
   result.scene_build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
-  result.render = render::render_differential(world, camera, scene.light_rig(), settings);
-  result.composite_linear = render::composite_differential(photo_linear, result.render);
+  const render::LightRig lights = scene.light_rig();
+  render::SessionSettings session_settings;
+  session_settings.render = settings;
+  session_settings.max_samples_per_pixel = settings.samples_per_pixel;
+  session_settings.cull_tiles = options.cull_tiles;
+  session_settings.target_relative_error = options.target_relative_error;
+  render::RenderSession session(world, camera, lights, photo_linear, prop_bounds, session_settings);
+  while (!session.finished()) {
+    result.passes.push_back(session.run_pass());
+    if (settings.progress) settings.progress(static_cast<double>(result.passes.back().max_samples) / settings.samples_per_pixel);
+    if (options.on_pass) options.on_pass(session, result.passes.back());
+  }
+  result.render = session.differential();
+  result.composite_linear = session.composite();
+  result.tiles = session.tiles();
+  result.reach = session.reach();
   return result;
 }
 

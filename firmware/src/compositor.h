@@ -2,6 +2,7 @@
 // composited by differential rendering out.
 #pragma once
 
+#include <functional>
 #include <optional>
 #include <string>
 
@@ -9,6 +10,7 @@
 #include "propcam/render/mesh.h"
 #include "propcam/render/path_tracer.h"
 #include "propcam/render/placement.h"
+#include "propcam/render/render_session.h"
 
 namespace propcam::firmware {
 
@@ -22,15 +24,25 @@ render::Mesh load_prop(const std::string& name_or_file, const MaterialOverride& 
 // Natural height of a preset, or of a loaded mesh's bounding box.
 double natural_height(const std::string& name_or_file, const render::Mesh& mesh);
 
+struct CompositeOptions {
+  bool cull_tiles = true;               // skip tiles the prop cannot affect
+  double target_relative_error = 0.0;   // stop tiles early at this error (0: run to --spp)
+  // Called after each progressive pass with the session (snapshot, tiles, errors).
+  std::function<void(const render::RenderSession&, const render::PassReport&)> on_pass;
+};
+
 struct CompositeResult {
   cv::Mat composite_linear;  // CV_32FC3
   render::DifferentialRender render;
   render::PlacedProp placed;
   double scene_build_seconds = 0.0;
+  std::vector<render::PassReport> passes;
+  std::vector<render::TileStatus> tiles;
+  render::PropReach reach;
 };
 
 CompositeResult composite_prop(const cv::Mat& photo_linear, const inference::SceneModel& scene,
                                const render::Mesh& prop, const render::PropPlacement& placement,
-                               const render::RenderSettings& settings);
+                               const render::RenderSettings& settings, const CompositeOptions& options = {});
 
 }  // namespace propcam::firmware

@@ -271,6 +271,49 @@ PrimaryBuffers render_primary_buffers(const Scene& scene, const PinholeCamera& c
   return out;
 }
 
+namespace {
+
+// The per-sample change of one differential sample (see render_differential).
+void differential_sample(const PathIntegrator& integrator, const PinholeCamera& camera, uint64_t seed, int x, int y,
+                         int sample, DifferentialPixel& pixel) {
+  Rng rng(detail::mix_seed(seed, static_cast<uint64_t>(sample) + 1), pixel_stream(camera, x, y));
+  const CameraRay ray = jittered_camera_ray(camera, x, y, rng);
+  // Both worlds consume the same random numbers: where the prop does not
+  // interfere, the two paths are identical and their difference is exactly 0.
+  Rng rng_without = rng;
+  const PathResult with_prop = integrator.trace(ray.origin, ray.direction, rng, true);
+  pixel.rays += with_prop.rays;
+  ++pixel.samples;
+  Eigen::Vector3f delta = Eigen::Vector3f::Zero();
+  if (with_prop.prop_primary) {
+    ++pixel.prop_samples;
+    delta = with_prop.radiance;
+  } else if (with_prop.touched_prop) {
+    const PathResult without = integrator.trace(ray.origin, ray.direction, rng_without, false);
+    pixel.rays += without.rays;
+    ++pixel.second_paths;
+    delta = with_prop.radiance - without.radiance;
+    const float gain = 0.2126f * delta.x() + 0.7152f * delta.y() + 0.0722f * delta.z();
+    if (gain > kMaxBackgroundGainLuminance) delta *= kMaxBackgroundGainLuminance / gain;
+  } else {
+    ++pixel.untouched;
+    return;
+  }
+  pixel.change_sum += delta;
+  const double lum = 0.2126 * delta.x() + 0.7152 * delta.y() + 0.0722 * delta.z();
+  pixel.change_luminance_sq_sum += lum * lum;
+}
+
+}  // namespace
+
+void accumulate_differential_pixel(const Scene& scene, const PinholeCamera& camera, const LightRig& lights,
+                                   const RenderSettings& settings, int x, int y, int first_sample, int count,
+                                   DifferentialPixel& pixel) {
+  const PathIntegrator integrator(scene, lights, settings.max_bounces);
+  for (int s = first_sample; s < first_sample + count; ++s)
+    differential_sample(integrator, camera, settings.seed, x, y, s, pixel);
+}
+
 DifferentialRender render_differential(const Scene& scene, const PinholeCamera& camera, const LightRig& lights,
                                        const RenderSettings& settings) {
   check_inputs(scene, camera, settings);
@@ -284,34 +327,15 @@ DifferentialRender render_differential(const Scene& scene, const PinholeCamera& 
     uint64_t tile_rays = 0, tile_second = 0, tile_untouched = 0;
     for (int y = y0; y < y1; ++y)
       for (int x = x0; x < x1; ++x) {
-        Rng rng(detail::mix_seed(settings.seed, 0), pixel_stream(camera, x, y));
-        Eigen::Vector3f change = Eigen::Vector3f::Zero();
-        int prop_samples = 0;
-        for (int s = 0; s < settings.samples_per_pixel; ++s) {
-          const CameraRay ray = jittered_camera_ray(camera, x, y, rng);
-          // Both worlds consume the same random numbers: where the prop does
-          // not interfere, the two paths are identical and their difference is exactly 0.
-          Rng rng_without = rng;
-          const PathResult with_prop = integrator.trace(ray.origin, ray.direction, rng, true);
-          tile_rays += with_prop.rays;
-          if (with_prop.prop_primary) {
-            ++prop_samples;
-            change += with_prop.radiance;
-          } else if (with_prop.touched_prop) {
-            const PathResult without = integrator.trace(ray.origin, ray.direction, rng_without, false);
-            tile_rays += without.rays;
-            ++tile_second;
-            Eigen::Vector3f delta = with_prop.radiance - without.radiance;
-            const float gain = 0.2126f * delta.x() + 0.7152f * delta.y() + 0.0722f * delta.z();
-            if (gain > kMaxBackgroundGainLuminance) delta *= kMaxBackgroundGainLuminance / gain;
-            change += delta;
-          } else {
-            ++tile_untouched;
-          }
-        }
+        DifferentialPixel pixel;
+        for (int s = 0; s < settings.samples_per_pixel; ++s)
+          differential_sample(integrator, camera, settings.seed, x, y, s, pixel);
         const float inv = 1.f / static_cast<float>(settings.samples_per_pixel);
-        out.coverage.at<float>(y, x) = prop_samples * inv;
-        out.change.at<cv::Vec3f>(y, x) = cv::Vec3f(change.x(), change.y(), change.z()) * inv;
+        out.coverage.at<float>(y, x) = pixel.prop_samples * inv;
+        out.change.at<cv::Vec3f>(y, x) = cv::Vec3f(pixel.change_sum.x(), pixel.change_sum.y(), pixel.change_sum.z()) * inv;
+        tile_rays += pixel.rays;
+        tile_second += pixel.second_paths;
+        tile_untouched += pixel.untouched;
       }
     rays += tile_rays;
     second_paths += tile_second;

@@ -55,6 +55,21 @@ struct DifferentialRender {
 DifferentialRender render_differential(const Scene& scene, const PinholeCamera& camera, const LightRig& lights,
                                        const RenderSettings& settings);
 
+// One pixel's differential samples [first_sample, first_sample + count), the
+// unit of progressive rendering. Sample s draws from its own random stream
+// (seed, pixel, s), so any split into passes gives bit-identical sums.
+struct DifferentialPixel {
+  Eigen::Vector3f change_sum = Eigen::Vector3f::Zero();  // sum of per-sample changes
+  double change_luminance_sq_sum = 0.0;                  // for the standard error
+  int prop_samples = 0;                                  // samples whose camera ray saw a prop
+  int samples = 0;
+  uint64_t rays = 0, second_paths = 0, untouched = 0;
+};
+
+void accumulate_differential_pixel(const Scene& scene, const PinholeCamera& camera, const LightRig& lights,
+                                   const RenderSettings& settings, int x, int y, int first_sample, int count,
+                                   DifferentialPixel& pixel);
+
 // Debevec's additive differential compositing, per sample:
 // I_final = M*I_obj + (1-M)*(I_b + I_obj - I_noobj), clamped at 0.
 cv::Mat composite_differential(const cv::Mat& photo_linear, const DifferentialRender& render);

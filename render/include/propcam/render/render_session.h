@@ -1,0 +1,86 @@
+// Progressive differential rendering in tiles: passes of doubling samples,
+// a composite snapshot and a per-tile error estimate after each pass, cancel
+// and resume at any time, deterministic for a seed. Tiles the prop cannot
+// affect (see prop_reach.h) are never traced and keep the photo.
+#pragma once
+
+#include <atomic>
+#include <opencv2/core.hpp>
+#include <vector>
+
+#include "propcam/render/path_tracer.h"
+#include "propcam/render/prop_reach.h"
+
+namespace propcam::render {
+
+struct SessionSettings {
+  RenderSettings render;            // seed, bounces, threads, tile size (samples_per_pixel is ignored)
+  int max_samples_per_pixel = 256;  // a tile stops here
+  // A tile stops when the standard error of its change image, relative to
+  // its brightness, falls below this (0: never; run to max samples).
+  double target_relative_error = 0.0;
+  // No tile converges before this many samples: with few samples, a tile
+  // whose paths all missed the prop's faint penumbra shows zero variance.
+  int min_samples_to_converge = 8;
+  bool cull_tiles = true;           // skip tiles the prop cannot affect
+  ReachOptions reach;
+};
+
+struct TileStatus {
+  cv::Rect rect;
+  bool affected = true;         // false: culled, never traced
+  int samples = 0;              // per pixel so far
+  double relative_error = 0.0;  // standard error of the change / tile brightness
+  double seconds = 0.0;         // time spent on this tile (all passes, summed over threads)
+  bool done = false;            // converged, at the sample limit, or culled
+};
+
+struct PassReport {
+  int pass = 0;
+  int max_samples = 0;          // samples per pixel of the most sampled tile
+  int tiles_traced = 0;         // in this pass
+  int tiles_culled = 0;
+  int tiles_done = 0;
+  double max_relative_error = 0.0;  // over affected tiles
+  double pass_seconds = 0.0;
+  double total_seconds = 0.0;
+  bool cancelled = false;       // stopped early; the unfinished tiles of this pass were dropped
+};
+
+class RenderSession {
+ public:
+  // `scene` holds the background and the prop; `prop_bounds` is the prop's
+  // world bounding box (for culling). The references must outlive the session.
+  RenderSession(const Scene& scene, const PinholeCamera& camera, const LightRig& lights, const cv::Mat& photo_linear,
+                const Eigen::AlignedBox3f& prop_bounds, const SessionSettings& settings);
+
+  // One pass: every unfinished tile doubles its samples (the first pass gives
+  // one). `cancel` is polled between tiles; a cancelled pass keeps the tiles
+  // it finished, and the next call resumes where it stopped.
+  PassReport run_pass(const std::atomic<bool>* cancel = nullptr);
+  bool finished() const;
+
+  cv::Mat composite() const;            // CV_32FC3 linear, the photo's size
+  DifferentialRender differential() const;
+  cv::Mat tile_error_map() const;       // CV_32F, each pixel its tile's relative error (0 where culled)
+  const std::vector<TileStatus>& tiles() const { return tiles_; }
+  const PropReach& reach() const { return reach_; }
+  RenderStats stats() const;            // rays and samples so far
+  int passes() const { return passes_; }
+
+ private:
+  void render_tile(int index, int first_sample, int count);
+
+  const Scene& scene_;
+  const PinholeCamera& camera_;
+  const LightRig& lights_;
+  cv::Mat photo_;
+  SessionSettings settings_;
+  PropReach reach_;
+  std::vector<TileStatus> tiles_;
+  std::vector<DifferentialPixel> pixels_;
+  int passes_ = 0;
+  double total_seconds_ = 0.0;
+};
+
+}  // namespace propcam::render

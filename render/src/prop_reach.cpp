@@ -1,0 +1,132 @@
+#include "propcam/render/prop_reach.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <numbers>
+
+namespace propcam::render {
+namespace {
+
+using Eigen::Vector3f;
+
+constexpr float kPi = std::numbers::pi_v<float>;
+// A box with any extent below this is treated as empty (no prop).
+constexpr float kMinBoundsExtent = 1e-6f;
+// Luminance of a light below this is off.
+constexpr float kMinLightLuminance = 1e-12f;
+
+float luminance(const Vector3f& c) { return 0.2126f * c.x() + 0.7152f * c.y() + 0.0722f * c.z(); }
+
+// Slab test: does origin + t*dir, t > 0, meet the box?
+bool ray_hits_box(const Vector3f& origin, const Vector3f& dir, const Eigen::AlignedBox3f& box) {
+  float t0 = 0.f, t1 = std::numeric_limits<float>::infinity();
+  for (int a = 0; a < 3; ++a) {
+    if (std::abs(dir[a]) < 1e-12f) {
+      if (origin[a] < box.min()[a] || origin[a] > box.max()[a]) return false;
+      continue;
+    }
+    float ta = (box.min()[a] - origin[a]) / dir[a], tb = (box.max()[a] - origin[a]) / dir[a];
+    if (ta > tb) std::swap(ta, tb);
+    t0 = std::max(t0, ta);
+    t1 = std::min(t1, tb);
+    if (t0 > t1) return false;
+  }
+  return true;
+}
+
+// Angular radius of a sphere of radius r at distance d (pi/2 when inside).
+float angular_radius(float r, float d) { return d <= r ? kPi / 2 : std::asin(std::clamp(r / d, 0.f, 1.f)); }
+
+float angle_between(const Vector3f& a, const Vector3f& b) {
+  return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.f, 1.f));
+}
+
+}  // namespace
+
+PropReach estimate_prop_reach(const Scene& scene, const PinholeCamera& camera, const LightRig& lights,
+                              const Eigen::AlignedBox3f& prop_bounds, const ReachOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  PropReach reach;
+  reach.affected = cv::Mat::zeros(camera.height, camera.width, CV_8U);
+  const int n_area = static_cast<int>(lights.area_lights.size());
+  reach.pixels_in_shadow.assign(n_area, 0);
+  reach.light_significant.assign(n_area, false);
+  if (prop_bounds.isEmpty() || prop_bounds.sizes().maxCoeff() < kMinBoundsExtent || camera.width <= 0) return reach;
+
+  const Vector3f centre = prop_bounds.center();
+  const float radius = 0.5f * prop_bounds.sizes().norm();
+  // Which lights matter at the prop: radiance x solid angle, relative to the strongest.
+  std::vector<float> strength(n_area, 0.f);
+  float strongest = 0.f;
+  for (int i = 0; i < n_area; ++i) {
+    const AreaLight& l = lights.area_lights[i];
+    const float d = std::max((l.centre() - centre).norm(), radius);
+    strength[i] = luminance(l.radiance) * l.area() / (d * d);
+    strongest = std::max(strongest, strength[i]);
+  }
+  for (int i = 0; i < n_area; ++i)
+    reach.light_significant[i] = strength[i] > kMinLightLuminance && strength[i] >= options.min_light_share * strongest;
+
+  // Occlusion and bounce reach: the prop's bounding sphere subtends solid
+  // angle 2pi(1 - cos a); its share of the cosine-weighted hemisphere is at
+  // most sin^2 a. Points with sin^2 a below the threshold are out of reach.
+  // The sphere overstates a box's occlusion: use the sphere of the box's mean
+  // projected area (a convex body's mean shadow is a quarter of its surface).
+  const Vector3f e = prop_bounds.sizes();
+  const float mean_projected_area = 0.5f * (e.x() * e.y() + e.y() * e.z() + e.z() * e.x());
+  const float effective_radius = std::sqrt(mean_projected_area / kPi);
+  const float reach_distance =
+      effective_radius / std::sqrt(static_cast<float>(std::max(options.min_hemisphere_share, 1e-9)));
+  const Vector3f origin = camera.center_world.cast<float>();
+  const int step = std::max(1, options.pixel_step);
+  for (int y0 = 0; y0 < camera.height; y0 += step)
+    for (int x0 = 0; x0 < camera.width; x0 += step) {
+      const int y = std::min(y0 + step / 2, camera.height - 1), x = std::min(x0 + step / 2, camera.width - 1);
+      bool affected = false;
+      // Seen through the prop's bounds (prop visible, or hiding what is behind):
+      // tested at the block's corners too, so thin props are not missed.
+      for (int corner = 0; corner < 5 && !affected; ++corner) {
+        const double u = corner == 0 ? x : x0 - 0.5 + (corner & 1 ? step : 0);
+        const double v = corner == 0 ? y : y0 - 0.5 + (corner & 2 ? step : 0);
+        const Vector3f dir = camera.ray_direction(u, v).cast<float>();
+        if (ray_hits_box(origin, dir, prop_bounds)) affected = true;
+      }
+      if (affected) ++reach.pixels_seen;
+      if (!affected) {
+        const Vector3f dir = camera.ray_direction(x, y).cast<float>();
+        RayHit hit;
+        if (scene.intersect(origin, dir, std::numeric_limits<float>::infinity(), false, hit)) {
+          const Vector3f p = origin + dir * hit.t;
+          const Vector3f to_prop = centre - p;
+          const float prop_distance = to_prop.norm();
+          if (prop_distance <= reach_distance) {
+            affected = true;
+            ++reach.pixels_near;
+          } else {
+            const float prop_angle = angular_radius(radius, prop_distance);
+            for (int i = 0; i < n_area && !affected; ++i) {
+              if (!reach.light_significant[i]) continue;
+              const AreaLight& l = lights.area_lights[i];
+              const Vector3f to_light = l.centre() - p;
+              const float light_distance = to_light.norm();
+              if (light_distance <= prop_distance - radius) continue;  // the light is nearer than the prop
+              if (l.normal().dot(-to_light) <= 0.f) continue;           // p is behind the one-sided light
+              const float light_radius = 0.5f * (l.edge_u.norm() + l.edge_v.norm());
+              if (angle_between(to_prop, to_light) < prop_angle + angular_radius(light_radius, light_distance)) {
+                affected = true;
+                ++reach.pixels_in_shadow[i];
+              }
+            }
+          }
+        }
+      }
+      if (affected)
+        reach.affected(cv::Rect(x0, y0, std::min(step, camera.width - x0), std::min(step, camera.height - y0))).setTo(255);
+    }
+  reach.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return reach;
+}
+
+}  // namespace propcam::render

@@ -1,0 +1,175 @@
+#include "propcam/render/render_session.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <mutex>
+#include <stdexcept>
+#include <thread>
+
+namespace propcam::render {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+// Tiles darker than this are judged against it, so noise on a black wall
+// does not read as an infinite relative error.
+constexpr double kMinReferenceLuminance = 0.05;
+
+double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+}  // namespace
+
+RenderSession::RenderSession(const Scene& scene, const PinholeCamera& camera, const LightRig& lights,
+                             const cv::Mat& photo_linear, const Eigen::AlignedBox3f& prop_bounds,
+                             const SessionSettings& settings)
+    : scene_(scene), camera_(camera), lights_(lights), photo_(photo_linear), settings_(settings) {
+  if (camera.width <= 0 || camera.height <= 0) throw std::invalid_argument("render session: camera has no pixels");
+  if (photo_linear.type() != CV_32FC3 || photo_linear.cols != camera.width || photo_linear.rows != camera.height)
+    throw std::invalid_argument("render session: the photo must be CV_32FC3 at the camera's size");
+  if (settings.max_samples_per_pixel <= 0) throw std::invalid_argument("render session: max samples must be positive");
+  if (settings.render.max_bounces < 0) throw std::invalid_argument("render session: max_bounces must be >= 0");
+  const auto start = Clock::now();
+  if (settings.cull_tiles) {
+    reach_ = estimate_prop_reach(scene, camera, lights, prop_bounds, settings.reach);
+  } else {
+    reach_.affected = cv::Mat(camera.height, camera.width, CV_8U, cv::Scalar(255));
+  }
+  const int tile = std::max(1, settings.render.tile_size);
+  for (int y = 0; y < camera.height; y += tile)
+    for (int x = 0; x < camera.width; x += tile) {
+      TileStatus t;
+      t.rect = cv::Rect(x, y, std::min(tile, camera.width - x), std::min(tile, camera.height - y));
+      t.affected = cv::countNonZero(reach_.affected(t.rect)) > 0;
+      t.done = !t.affected;
+      tiles_.push_back(t);
+    }
+  pixels_.assign(static_cast<size_t>(camera.width) * camera.height, DifferentialPixel{});
+  total_seconds_ = seconds_since(start);
+}
+
+bool RenderSession::finished() const {
+  return std::all_of(tiles_.begin(), tiles_.end(), [](const TileStatus& t) { return t.done; });
+}
+
+void RenderSession::render_tile(int index, int first_sample, int count) {
+  TileStatus& tile = tiles_[index];
+  const auto start = Clock::now();
+  // Accumulate into a copy: a tile is either fully updated or untouched, so a
+  // cancelled pass leaves a consistent state.
+  std::vector<DifferentialPixel> local;
+  local.reserve(tile.rect.area());
+  for (int y = tile.rect.y; y < tile.rect.br().y; ++y)
+    for (int x = tile.rect.x; x < tile.rect.br().x; ++x) {
+      DifferentialPixel p = pixels_[static_cast<size_t>(y) * camera_.width + x];
+      accumulate_differential_pixel(scene_, camera_, lights_, settings_.render, x, y, first_sample, count, p);
+      local.push_back(p);
+    }
+  // Error: RMS over pixels of the standard error of the per-sample change
+  // luminance, relative to the tile's brightness in the photo.
+  double se2 = 0.0, brightness = 0.0;
+  size_t i = 0;
+  for (int y = tile.rect.y; y < tile.rect.br().y; ++y)
+    for (int x = tile.rect.x; x < tile.rect.br().x; ++x, ++i) {
+      const DifferentialPixel& p = local[i];
+      pixels_[static_cast<size_t>(y) * camera_.width + x] = p;
+      const double n = std::max(1, p.samples);
+      const Eigen::Vector3f& s = p.change_sum;
+      const double mean = (0.2126 * s.x() + 0.7152 * s.y() + 0.0722 * s.z()) / n;
+      const double variance = std::max(0.0, p.change_luminance_sq_sum / n - mean * mean);
+      se2 += n > 1 ? variance / (n - 1) : variance;
+      const cv::Vec3f c = photo_.at<cv::Vec3f>(y, x);
+      brightness += 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
+    }
+  const double pixels = std::max<size_t>(1, local.size());
+  tile.samples = first_sample + count;
+  tile.relative_error = std::sqrt(se2 / pixels) / std::max(brightness / pixels, kMinReferenceLuminance);
+  tile.seconds += seconds_since(start);
+  const bool converged = settings_.target_relative_error > 0 &&
+                         tile.samples >= std::max(2, settings_.min_samples_to_converge) &&
+                         tile.relative_error <= settings_.target_relative_error;
+  tile.done = converged || tile.samples >= settings_.max_samples_per_pixel;
+}
+
+PassReport RenderSession::run_pass(const std::atomic<bool>* cancel) {
+  const auto start = Clock::now();
+  PassReport report;
+  std::vector<int> work;
+  for (int i = 0; i < static_cast<int>(tiles_.size()); ++i)
+    if (!tiles_[i].done) work.push_back(i);
+  std::atomic<int> next{0}, traced{0};
+  std::atomic<bool> stopped{false};
+  auto worker = [&] {
+    for (int k; (k = next.fetch_add(1)) < static_cast<int>(work.size());) {
+      if (cancel && cancel->load()) {
+        stopped = true;
+        return;
+      }
+      TileStatus& t = tiles_[work[k]];
+      // Doubling: 0 -> 1 -> 2 -> 4 ..., capped at the limit.
+      const int count = std::min(std::max(1, t.samples), settings_.max_samples_per_pixel - t.samples);
+      render_tile(work[k], t.samples, count);
+      ++traced;
+    }
+  };
+  int threads = settings_.render.threads > 0 ? settings_.render.threads : static_cast<int>(std::thread::hardware_concurrency());
+  threads = std::clamp(threads, 1, std::max(1, static_cast<int>(work.size())));
+  {
+    std::vector<std::jthread> pool;
+    for (int i = 1; i < threads; ++i) pool.emplace_back(worker);
+    worker();
+  }
+  ++passes_;
+  report.pass = passes_;
+  report.cancelled = stopped;
+  report.tiles_traced = traced;
+  for (const auto& t : tiles_) {
+    report.tiles_culled += !t.affected;
+    report.tiles_done += t.done;
+    report.max_samples = std::max(report.max_samples, t.samples);
+    if (t.affected) report.max_relative_error = std::max(report.max_relative_error, t.relative_error);
+  }
+  report.pass_seconds = seconds_since(start);
+  total_seconds_ += report.pass_seconds;
+  report.total_seconds = total_seconds_;
+  return report;
+}
+
+DifferentialRender RenderSession::differential() const {
+  DifferentialRender out;
+  out.coverage = cv::Mat(camera_.height, camera_.width, CV_32F, cv::Scalar(0));
+  out.change = cv::Mat(camera_.height, camera_.width, CV_32FC3, cv::Scalar::all(0));
+  for (int y = 0; y < camera_.height; ++y)
+    for (int x = 0; x < camera_.width; ++x) {
+      const DifferentialPixel& p = pixels_[static_cast<size_t>(y) * camera_.width + x];
+      if (p.samples == 0) continue;
+      const float inv = 1.f / static_cast<float>(p.samples);
+      out.coverage.at<float>(y, x) = p.prop_samples * inv;
+      out.change.at<cv::Vec3f>(y, x) = cv::Vec3f(p.change_sum.x(), p.change_sum.y(), p.change_sum.z()) * inv;
+    }
+  out.stats = stats();
+  return out;
+}
+
+cv::Mat RenderSession::composite() const { return composite_differential(photo_, differential()); }
+
+cv::Mat RenderSession::tile_error_map() const {
+  cv::Mat map(camera_.height, camera_.width, CV_32F, cv::Scalar(0));
+  for (const auto& t : tiles_)
+    if (t.affected) map(t.rect).setTo(static_cast<float>(t.relative_error));
+  return map;
+}
+
+RenderStats RenderSession::stats() const {
+  RenderStats s;
+  s.seconds = total_seconds_;
+  for (const auto& p : pixels_) {
+    s.camera_samples += p.samples;
+    s.rays += p.rays;
+    s.paths_without_prop += p.second_paths;
+    s.paths_prop_untouched += p.untouched;
+  }
+  return s;
+}
+
+}  // namespace propcam::render
