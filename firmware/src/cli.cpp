@@ -13,6 +13,7 @@
 #include "progress.h"
 #include "propcam/capture/image_file.h"
 #include "propcam/inference/infer.h"
+#include "propcam/render/depth_of_field.h"
 #include "propcam/render/panorama.h"
 #include "propcam/render/props.h"
 #include "synthetic_truth.h"
@@ -106,6 +107,7 @@ struct CompositeArgs {
   int spp = 16, bounces = 4;
   uint64_t seed = 0x5eed;
   bool json_out = false, explain = false, no_cull = false;
+  double aperture = 0, focus = 0;
 };
 
 // What the renderer decided to trace and to skip, and why.
@@ -182,7 +184,18 @@ int cmd_composite(const CompositeArgs& a) {
   options.cull_tiles = !a.no_cull;
   const CompositeResult result = composite_prop(photo, scene, prop, placement, settings, options);
   const json plan = render_plan_json(result);
-  capture::write_image(a.out, result.composite_linear);
+  cv::Mat final_image = result.composite_linear;
+  json dof_json = nullptr;
+  if (a.aperture > 0) {
+    render::DepthOfField dof;
+    dof.aperture_m = a.aperture;
+    // Focus on the prop unless told otherwise.
+    dof.focus_distance_m = a.focus > 0 ? a.focus
+                                       : scene.camera().world_to_camera(result.placed.base_world.cast<double>()).z();
+    final_image = render::apply_depth_of_field(result.composite_linear, result.depth, scene.fx, dof);
+    dof_json = {{"aperture_m", dof.aperture_m}, {"focus_m", dof.focus_distance_m}};
+  }
+  capture::write_image(a.out, final_image);
   const auto& st = result.render.stats;
   const double skipped = st.camera_samples ? static_cast<double>(st.paths_prop_untouched) / st.camera_samples : 0.0;
   json summary = {{"output", a.out},
@@ -195,6 +208,7 @@ int cmd_composite(const CompositeArgs& a) {
                   {"rays", st.rays},
                   {"samples_untouched_by_prop", skipped},
                   {"plan", plan},
+                  {"depth_of_field", dof_json},
                   {"total_seconds", progress.elapsed()}};
   if (a.json_out) std::cout << summary.dump(2) << std::endl;
   else {
@@ -331,6 +345,10 @@ int run_cli(int argc, char** argv) {
   composite->add_option("-o,--output", comp.out, "Composite image to write (PNG, JPEG or EXR)")->required();
   composite->add_flag("--json", comp.json_out, "Machine-readable summary on stdout");
   composite->add_flag("--explain", comp.explain, "Print what the renderer traced and skipped, and why");
+  composite->add_option("--aperture", comp.aperture, "Depth of field: lens aperture diameter in metres (0: none)")
+      ->check(CLI::Range(0.0, 1.0));
+  composite->add_option("--focus", comp.focus, "Depth of field: focus distance in metres (default: the prop)")
+      ->check(CLI::PositiveNumber);
   composite->add_flag("--no-cull", comp.no_cull, "Trace every tile (to measure what culling saves)");
 
   bool props_json = false;

@@ -77,6 +77,10 @@ CompositeResult composite_prop(const cv::Mat& photo_linear, const inference::Sce
   result.composite_linear = session.composite();
   result.tiles = session.tiles();
   result.reach = session.reach();
+  // Depth of the composite: the scene's, with the prop's where it is seen.
+  result.depth = scene.depth.clone();
+  const render::PrimaryBuffers primary = render::render_primary_buffers(world, camera, true);
+  primary.depth.copyTo(result.depth, primary.prop_coverage);
   return result;
 }
 

@@ -39,6 +39,7 @@ struct CompositeResult {
   std::vector<render::PassReport> passes;
   std::vector<render::TileStatus> tiles;
   render::PropReach reach;
+  cv::Mat depth;  // CV_32F metres along camera z of what each pixel sees, the prop included (for depth of field)
 };
 
 CompositeResult composite_prop(const cv::Mat& photo_linear, const inference::SceneModel& scene,
