@@ -3,6 +3,9 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
+#include <cctype>
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -16,6 +19,7 @@
 #include "propcam/render/depth_of_field.h"
 #include "propcam/render/panorama.h"
 #include "propcam/render/props.h"
+#include "propcam/render/scene_file.h"
 #include "synthetic_truth.h"
 
 namespace propcam::firmware {
@@ -309,6 +313,84 @@ int cmd_view(const ViewArgs& a) {
   return 0;
 }
 
+struct RenderArgs {
+  std::string scene, out;
+  int spp = 16, bounces = 4;
+  double time_budget = 0;  // seconds; 0: render `spp` samples in one pass
+  uint64_t seed = 0x5eed;
+  bool json_out = false;
+};
+
+// `--time`: passes of 1, 2, 4, ... samples per pixel; at most this many passes
+// (2^16 - 1 samples per pixel in all).
+constexpr int kMaxTimedPasses = 16;
+
+int cmd_render(const RenderArgs& a) {
+  Progress progress(a.json_out);
+  if (a.spp <= 0 || a.spp > 65536) throw std::invalid_argument("--spp must be in 1..65536");
+  if (a.bounces < 0 || a.bounces > 64) throw std::invalid_argument("--bounces must be in 0..64");
+  std::string ext = fs::path(a.out).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  if (ext != ".exr" && ext != ".png" && ext != ".jpg" && ext != ".jpeg")
+    throw std::invalid_argument("-o expects an .exr, .png or .jpg file, got '" + a.out + "'");
+  progress.stage("loading " + a.scene);
+  const render::SceneFile file = render::load_scene_file(a.scene);
+  const auto scene = render::build_scene(file);
+  const render::PinholeCamera& camera = file.camera;
+
+  render::RenderSettings settings;
+  settings.max_bounces = a.bounces;
+  cv::Mat sum(camera.height, camera.width, CV_32FC3, cv::Scalar::all(0));
+  int total_spp = 0, passes = 0;
+  uint64_t rays = 0;
+  const auto start = std::chrono::steady_clock::now();
+  const auto seconds_since_start = [&] {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  };
+  // One pass of `spp` samples, accumulated with its weight.
+  const auto pass = [&](int spp, uint64_t seed, const std::string& what) {
+    settings.samples_per_pixel = spp;
+    settings.seed = seed;
+    settings.progress = progress.fraction_printer(what);
+    render::RenderStats stats;
+    const cv::Mat image = render::render_image(*scene, camera, file.lights, settings, &stats);
+    cv::scaleAdd(image, static_cast<double>(spp), sum, sum);
+    total_spp += spp;
+    rays += stats.rays;
+    ++passes;
+    return stats.seconds;
+  };
+  if (a.time_budget > 0) {
+    // Doubling passes with independent seeds; stop before a pass that would
+    // (taking twice the last one) end after the budget. The first always runs.
+    for (int k = 0; k < kMaxTimedPasses; ++k) {
+      const int spp = 1 << k;
+      progress.stage("render pass " + std::to_string(k + 1) + ": " + std::to_string(spp) + " spp");
+      const double last = pass(spp, a.seed + static_cast<uint64_t>(k) * 0x9E3779B97F4A7C15ULL,
+                               "pass " + std::to_string(k + 1));
+      if (seconds_since_start() + 2.0 * last > a.time_budget) break;
+    }
+  } else {
+    progress.stage("render: " + std::to_string(a.spp) + " spp, " + std::to_string(a.bounces) + " bounces");
+    pass(a.spp, a.seed, "render");
+  }
+  const double seconds = seconds_since_start();
+  const cv::Mat image = sum / static_cast<double>(total_spp);
+  capture::write_image(a.out, image);
+  const double rays_per_s = seconds > 0 ? static_cast<double>(rays) / seconds : 0.0;
+  json summary = {{"output", a.out},       {"width", camera.width}, {"height", camera.height},
+                  {"spp", total_spp},      {"passes", passes},      {"seconds", seconds},
+                  {"rays", rays},          {"rays_per_s", rays_per_s}};
+  if (a.json_out) {
+    std::cout << summary.dump(2) << std::endl;
+  } else {
+    std::fprintf(stderr, "render %dx%d, %d spp in %.2fs, %.1f Mrays (%.2f Mrays/s)\n", camera.width, camera.height,
+                 total_spp, seconds, rays / 1e6, rays_per_s / 1e6);
+    progress.stage("wrote " + a.out);
+  }
+  return 0;
+}
+
 }  // namespace
 
 int run_cli(int argc, char** argv) {
@@ -336,8 +418,9 @@ int run_cli(int argc, char** argv) {
   composite->add_option("--spp", comp.spp, "Samples per pixel");
   composite->add_option("--bounces", comp.bounces, "Maximum bounces after the camera hit");
   composite->add_option("--seed", comp.seed, "Random seed (same seed, same image)");
-  composite->add_option("--material", comp.material, "Override the prop's material: diffuse|glossy|metal")
-      ->check(CLI::IsMember({"diffuse", "glossy", "metal"}));
+  composite->add_option("--material", comp.material,
+                        "Override the prop's material: diffuse|plastic|glossy|metal|dielectric|glass")
+      ->check(CLI::IsMember({"diffuse", "plastic", "glossy", "metal", "dielectric", "glass"}));
   composite->add_option("--albedo", comp.albedo, "Override the prop's albedo: R,G,B linear in 0..1");
   composite->add_option("--camera-height", comp.camera_height, "Camera height in metres when inferring")
       ->check(CLI::PositiveNumber);
@@ -364,6 +447,18 @@ int run_cli(int argc, char** argv) {
   synth->add_option("--prop", synth_args.prop, "Also render the room with this prop truly inserted");
   synth->add_option("--height", synth_args.height, "Prop height in metres");
   synth->add_flag("--json", synth_args.json_out, "Machine-readable summary");
+
+  RenderArgs render_args;
+  auto* render_cmd = app.add_subcommand("render", "Render a SCENE.json (camera, OBJ meshes, lights) to an image");
+  render_cmd->add_option("scene", render_args.scene, "Scene file (see render/README.md)")->required();
+  auto* spp_option = render_cmd->add_option("--spp", render_args.spp, "Samples per pixel");
+  render_cmd->add_option("--time", render_args.time_budget, "Render passes of doubling spp for about S seconds")
+      ->check(CLI::PositiveNumber)
+      ->excludes(spp_option);
+  render_cmd->add_option("--bounces", render_args.bounces, "Maximum bounces after the camera hit");
+  render_cmd->add_option("--seed", render_args.seed, "Random seed (same seed, same image)");
+  render_cmd->add_option("-o,--output", render_args.out, "Image to write (EXR linear, or PNG/JPEG sRGB)")->required();
+  render_cmd->add_flag("--json", render_args.json_out, "Machine-readable summary on stdout");
 
   BenchOptions bench_options;
   bool bench_json = false;
@@ -400,6 +495,7 @@ int run_cli(int argc, char** argv) {
     if (*props) return cmd_props(props_json);
     if (*synth) return cmd_synth(synth_args);
     if (*view) return cmd_view(view_args);
+    if (*render_cmd) return cmd_render(render_args);
     if (*bench) {
       if (!parse_pair(bench_size, bench_options.width, bench_options.height, 'x') || bench_options.width < 32 ||
           bench_options.height < 32)

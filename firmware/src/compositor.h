@@ -15,7 +15,7 @@
 namespace propcam::firmware {
 
 struct MaterialOverride {
-  std::optional<std::string> type;             // diffuse|glossy|metal
+  std::optional<std::string> type;             // diffuse|plastic|glossy|metal|dielectric|glass
   std::optional<Eigen::Vector3f> albedo;
 };
 

@@ -2,12 +2,56 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <stdexcept>
 
 namespace propcam::render {
 namespace {
 constexpr float kPi = std::numbers::pi_v<float>;
+constexpr double kPiD = std::numbers::pi;
+constexpr float kInfinity = std::numeric_limits<float>::infinity();
+// Brightest texel an environment keeps, so that its sums stay finite.
+constexpr float kMaxEnvironmentTexel = 1e6f;
+// A sampled light point seen at a cosine below this (edge-on) contributes
+// nothing: its pdf dist^2 / (cos * area) would overflow.
+constexpr double kMinLightCosine = 1e-7;
+// A point closer to a light than this (m) receives nothing from that sample
+// (the inverse-square factor would overflow).
+constexpr double kMinLightDistance = 1e-6;
+
+using Eigen::Vector3d;
+using Eigen::Vector3f;
+
+bool emits_radiance(const Vector3f& radiance) { return radiance.allFinite() && radiance.maxCoeff() > 0.f; }
+
+// Unit vector within `one_minus_cos_max` of the unit axis, uniform over the
+// cone's solid angle (cos theta = 1 - u1 * (1 - cos_max), done in 1 - cos so
+// that tiny cones such as the sun's keep their precision).
+Vector3d sample_cone(const Vector3d& axis, double one_minus_cos_max, double u1, double u2) {
+  const double one_minus_cos = u1 * one_minus_cos_max;
+  const double cos_theta = 1.0 - one_minus_cos;
+  const double sin_theta = std::sqrt(std::max(0.0, one_minus_cos * (2.0 - one_minus_cos)));
+  const double phi = 2.0 * kPiD * u2;
+  // Orthonormal basis around the axis (Duff et al. 2017).
+  const double sign = std::copysign(1.0, axis.z());
+  const double a = -1.0 / (sign + axis.z());
+  const double b = axis.x() * axis.y() * a;
+  const Vector3d t(1.0 + sign * axis.x() * axis.x() * a, sign * b, -sign * axis.x());
+  const Vector3d bt(b, sign + axis.y() * axis.y() * a, -axis.y());
+  return (sin_theta * std::cos(phi) * t + sin_theta * std::sin(phi) * bt + cos_theta * axis).normalized();
+}
+
+// 1 - cos of the half-angle of a sphere of radius^2 r2 seen from distance^2 d2 > r2.
+double sphere_one_minus_cos(double r2, double d2) {
+  const double sin2 = r2 / d2;
+  return sin2 / (1.0 + std::sqrt(std::max(0.0, 1.0 - sin2)));
+}
+
+double sun_radius(double angular_radius) {
+  if (!std::isfinite(angular_radius)) return kMinSunAngularRadius;
+  return std::clamp(angular_radius, kMinSunAngularRadius, kMaxSunAngularRadius);
+}
 
 float luminance(const cv::Vec3f& c) { return 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2]; }
 
@@ -36,10 +80,15 @@ Eigen::Vector3f EnvironmentLight::uv_to_direction(float u, float v) {
 EnvironmentLight::EnvironmentLight(const cv::Mat& latlong, Eigen::Vector3f scale) : scale_(scale) {
   if (latlong.empty() || latlong.type() != CV_32FC3)
     throw std::invalid_argument("environment map must be a non-empty CV_32FC3 image");
+  if (!scale_.allFinite()) scale_.setZero();
+  scale_ = scale_.cwiseMax(0.f);
   image_ = latlong.clone();
-  cv::patchNaNs(image_, 0.0);
-  cv::max(image_, 0.0, image_);
-  cv::min(image_, 1e6, image_);  // keep sums finite even for absurd inputs
+  // Negative and non-finite texels (NaN, +-Inf) become 0; the rest are capped.
+  for (int y = 0; y < image_.rows; ++y) {
+    auto* row = image_.ptr<float>(y);
+    for (int i = 0; i < image_.cols * 3; ++i)
+      row[i] = std::isfinite(row[i]) ? std::clamp(row[i], 0.f, kMaxEnvironmentTexel) : 0.f;
+  }
   const int rows = image_.rows, cols = image_.cols;
   conditional_cdf_.assign(static_cast<size_t>(rows) * (cols + 1), 0.f);
   row_weight_.assign(rows, 0.f);
@@ -63,6 +112,7 @@ EnvironmentLight::EnvironmentLight(const cv::Mat& latlong, Eigen::Vector3f scale
 }
 
 Eigen::Vector3f EnvironmentLight::radiance(const Eigen::Vector3f& direction) const {
+  if (!direction.allFinite() || image_.empty()) return Vector3f::Zero();
   const Eigen::Vector2f uv = direction_to_uv(direction);
   const int x = std::clamp(static_cast<int>(uv.x() * image_.cols), 0, image_.cols - 1);
   const int y = std::clamp(static_cast<int>(uv.y() * image_.rows), 0, image_.rows - 1);
@@ -86,6 +136,7 @@ Eigen::Vector3f EnvironmentLight::sample(float u1, float u2, float& pdf_out) con
 }
 
 float EnvironmentLight::pdf(const Eigen::Vector3f& direction) const {
+  if (!direction.allFinite() || image_.empty()) return 0.f;
   const int rows = image_.rows, cols = image_.cols;
   const Eigen::Vector2f uv = direction_to_uv(direction);
   const int x = std::clamp(static_cast<int>(uv.x() * cols), 0, cols - 1);
@@ -97,11 +148,142 @@ float EnvironmentLight::pdf(const Eigen::Vector3f& direction) const {
   return pdf_uv / (2.f * kPi * kPi * sin_theta);
 }
 
+bool AreaLight::emits() const {
+  return corner.allFinite() && edge_u.allFinite() && edge_v.allFinite() && area() > kMinAreaLightArea &&
+         emits_radiance(radiance);
+}
+
+LightSample AreaLight::sample(const Vector3f& from, float u1, float u2) const {
+  LightSample out;
+  if (!emits()) return out;
+  const Vector3d point = corner.cast<double>() + u1 * edge_u.cast<double>() + u2 * edge_v.cast<double>();
+  Vector3d to = point - from.cast<double>();
+  const double dist2 = to.squaredNorm();
+  if (!(dist2 > kMinLightDistance * kMinLightDistance)) return out;
+  const double dist = std::sqrt(dist2);
+  to /= dist;
+  const Vector3d n_area = edge_u.cast<double>().cross(edge_v.cast<double>());
+  const double area = n_area.norm();
+  const double cos_light = -to.dot(n_area) / area;
+  if (!(cos_light > kMinLightCosine)) return out;  // behind or edge-on
+  out.direction = to.cast<float>();
+  out.distance = static_cast<float>(dist);
+  out.radiance = radiance;
+  out.pdf = static_cast<float>(dist2 / (cos_light * area));
+  return out;
+}
+
+bool AreaLight::intersect(const Vector3f& origin, const Vector3f& direction, float& t, float& pdf) const {
+  if (!emits()) return false;
+  const Vector3d o = origin.cast<double>(), w = direction.cast<double>().normalized();
+  const Vector3d eu = edge_u.cast<double>(), ev = edge_v.cast<double>();
+  const Vector3d n_area = eu.cross(ev);
+  const double area = n_area.norm();
+  const double cos_light = -w.dot(n_area) / area;
+  if (!(cos_light > kMinLightCosine)) return false;  // parallel, or arriving at the back
+  const double distance = (corner.cast<double>() - o).dot(n_area) / w.dot(n_area);
+  if (!(distance > kMinLightDistance)) return false;
+  // Parallelogram coordinates of the hit: solve [eu ev] (s, t) = q in the plane.
+  const Vector3d q = o + distance * w - corner.cast<double>();
+  const double uu = eu.dot(eu), uv = eu.dot(ev), vv = ev.dot(ev);
+  const double det = uu * vv - uv * uv;  // = area^2 > 0
+  const double s = (vv * q.dot(eu) - uv * q.dot(ev)) / det;
+  const double r = (uu * q.dot(ev) - uv * q.dot(eu)) / det;
+  if (s < 0.0 || s > 1.0 || r < 0.0 || r > 1.0) return false;
+  t = static_cast<float>(distance);
+  pdf = static_cast<float>(distance * distance / (cos_light * area));
+  return std::isfinite(pdf);
+}
+
+bool SphereLight::emits() const {
+  return center.allFinite() && std::isfinite(radius) && radius > kMinSphereLightRadius && emits_radiance(radiance);
+}
+
+LightSample SphereLight::sample(const Vector3f& from, float u1, float u2) const {
+  LightSample out;
+  if (!emits()) return out;
+  const Vector3d oc = center.cast<double>() - from.cast<double>();
+  const double d2 = oc.squaredNorm(), r2 = static_cast<double>(radius) * radius;
+  if (!(d2 > r2)) return out;  // inside (or on) the sphere: it emits outward only
+  const double d = std::sqrt(d2);
+  const double one_minus_cos = sphere_one_minus_cos(r2, d2);
+  const Vector3d w = sample_cone(oc / d, one_minus_cos, u1, u2);
+  // First intersection along w; the perpendicular distance comes from a cross
+  // product (no cancellation for tiny spheres), and is clamped at the cone edge.
+  const double b = w.dot(oc);
+  const double perp2 = oc.cross(w).squaredNorm();
+  const double distance = b - std::sqrt(std::max(0.0, r2 - perp2));
+  if (!(distance > 0.0)) return out;
+  out.direction = w.cast<float>();
+  out.distance = static_cast<float>(distance);
+  out.radiance = radiance;
+  out.pdf = static_cast<float>(1.0 / (2.0 * kPiD * one_minus_cos));
+  if (!std::isfinite(out.pdf)) out = LightSample{};
+  return out;
+}
+
+bool SphereLight::intersect(const Vector3f& origin, const Vector3f& direction, float& t, float& pdf) const {
+  if (!emits()) return false;
+  const Vector3d oc = center.cast<double>() - origin.cast<double>();
+  const Vector3d w = direction.cast<double>().normalized();
+  const double d2 = oc.squaredNorm(), r2 = static_cast<double>(radius) * radius;
+  if (!(d2 > r2)) return false;
+  const double b = w.dot(oc);
+  if (!(b > 0.0)) return false;
+  const double perp2 = oc.cross(w).squaredNorm();
+  if (perp2 > r2) return false;
+  t = static_cast<float>(b - std::sqrt(r2 - perp2));
+  pdf = static_cast<float>(1.0 / (2.0 * kPiD * sphere_one_minus_cos(r2, d2)));
+  return t > 0.f && std::isfinite(pdf);
+}
+
+bool SunLight::emits() const {
+  return direction.allFinite() && direction.norm() > 0.f && emits_radiance(irradiance);
+}
+
+Vector3f SunLight::radiance() const {
+  if (!emits()) return Vector3f::Zero();
+  // The cone's projected solid angle about its axis is pi sin^2(radius).
+  const double s = std::sin(sun_radius(angular_radius));
+  return (irradiance.cast<double>() / (kPiD * s * s)).cast<float>();
+}
+
+LightSample SunLight::sample(float u1, float u2) const {
+  LightSample out;
+  if (!emits()) return out;
+  const double half = 0.5 * sun_radius(angular_radius);
+  const double one_minus_cos = 2.0 * std::sin(half) * std::sin(half);
+  out.direction = sample_cone(direction.cast<double>().normalized(), one_minus_cos, u1, u2).cast<float>();
+  out.distance = kInfinity;
+  out.radiance = radiance();
+  out.pdf = static_cast<float>(1.0 / (2.0 * kPiD * one_minus_cos));
+  return out;
+}
+
+float SunLight::pdf(const Vector3f& dir) const {
+  if (!emits() || !dir.allFinite()) return 0.f;
+  const double radius = sun_radius(angular_radius);
+  const Vector3d axis = direction.cast<double>().normalized();
+  const Vector3d w = dir.cast<double>();
+  const double len2 = w.squaredNorm();
+  if (!(len2 > 0.0) || !(axis.dot(w) > 0.0)) return 0.f;
+  // Inside the cone by the sine of the angle (a cross product stays precise for tiny cones).
+  const double sin_max = std::sin(radius);
+  if (axis.cross(w).squaredNorm() / len2 > sin_max * sin_max) return 0.f;
+  const double half = 0.5 * radius;
+  return static_cast<float>(1.0 / (2.0 * kPiD * 2.0 * std::sin(half) * std::sin(half)));
+}
+
 LightRig LightRig::only(int index) const {
   LightRig rig;
   const int n_area = static_cast<int>(area_lights.size());
+  const int n_sphere = static_cast<int>(sphere_lights.size());
+  const int n_sun = static_cast<int>(suns.size());
+  if (index < 0) throw std::out_of_range("light index out of range");
   if (index < n_area) rig.area_lights.push_back(area_lights[index]);
-  else if (index == n_area && environment) rig.environment = environment;
+  else if (index < n_area + n_sphere) rig.sphere_lights.push_back(sphere_lights[index - n_area]);
+  else if (index < n_area + n_sphere + n_sun) rig.suns.push_back(suns[index - n_area - n_sphere]);
+  else if (index == n_area + n_sphere + n_sun && environment) rig.environment = environment;
   else throw std::out_of_range("light index out of range");
   return rig;
 }

@@ -1,5 +1,6 @@
 #include "propcam/render/mesh.h"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -8,19 +9,28 @@ namespace propcam::render {
 const char* to_string(Material::Type type) {
   switch (type) {
     case Material::Type::Diffuse: return "diffuse";
-    case Material::Type::Glossy: return "glossy";
+    case Material::Type::Plastic: return "plastic";
     case Material::Type::Metal: return "metal";
     case Material::Type::Emissive: return "emissive";
+    case Material::Type::Dielectric: return "dielectric";
   }
   return "diffuse";
 }
 
 Material::Type material_type_from_string(const std::string& name) {
   if (name == "diffuse") return Material::Type::Diffuse;
-  if (name == "glossy") return Material::Type::Glossy;
-  if (name == "metal") return Material::Type::Metal;
+  if (name == "plastic" || name == "glossy") return Material::Type::Plastic;
+  if (name == "metal" || name == "conductor") return Material::Type::Metal;
+  if (name == "dielectric" || name == "glass") return Material::Type::Dielectric;
   if (name == "emissive") return Material::Type::Emissive;
-  throw std::invalid_argument("unknown material '" + name + "' (expected diffuse|glossy|metal|emissive)");
+  throw std::invalid_argument("unknown material '" + name +
+                              "' (expected diffuse|plastic|glossy|metal|dielectric|glass|emissive)");
+}
+
+float Material::coat_ior() const {
+  const float f0 = std::isfinite(specular) ? std::clamp(specular, 0.f, kMaxCoatSpecular) : 0.04f;
+  const float r = std::sqrt(f0);
+  return (1.f + r) / (1.f - r);
 }
 
 Eigen::AlignedBox3f Mesh::bounds() const {

@@ -155,6 +155,10 @@ Material convert_material(const tinyobj::material_t& mtl, const fs::path& mtl_fo
   if (ke.maxCoeff() > 0.f) {
     m.type = Material::Type::Emissive;
     m.emission = ke;
+  } else if (mtl.illum == 4 || mtl.illum == 6 || mtl.illum == 7) {
+    // The MTL illumination models with refraction: glass, index Ni.
+    m.type = Material::Type::Dielectric;
+    m.ior = std::isfinite(mtl.ior) && mtl.ior > 0.f && std::abs(mtl.ior - 1.f) > 1e-3f ? mtl.ior : 1.5f;
   } else if (mtl.illum == 3 || (ks.maxCoeff() >= 0.5f && kd.maxCoeff() <= 0.1f)) {
     m.type = Material::Type::Metal;
     m.albedo = ks.maxCoeff() > 0.f ? ks : kd;  // illum 3 with black Ks: a black mirror is never meant
@@ -496,12 +500,17 @@ void save_obj(const Mesh& mesh, const std::string& path) {
       case Material::Type::Emissive:
         ke = m.emission.cwiseMax(1e-6f);  // Ke = 0 would read back as diffuse
         break;
+      case Material::Type::Dielectric:
+        ks = Vector3f::Ones();
+        illum = 7;  // refraction and Fresnel: read back as Dielectric
+        break;
     }
     append_vector(mtl, "Kd", kd.data(), 3);
     append_vector(mtl, "Ks", ks.data(), 3);
     const float ns = shininess_from_roughness(m.roughness);
     append_vector(mtl, "Ns", &ns, 1);
     if (m.type == Material::Type::Emissive) append_vector(mtl, "Ke", ke.data(), 3);
+    if (m.type == Material::Type::Dielectric) append_vector(mtl, "Ni", &m.ior, 1);
     mtl += "illum " + std::to_string(illum) + "\n";
     if (m.texture && !m.texture->empty()) {
       if (m.texture->type() != CV_32FC3) fail(path, "texture of material '" + m.name + "' is not CV_32FC3");

@@ -9,12 +9,14 @@
 #include <thread>
 #include <vector>
 
+#include "bsdf.h"
 #include "sampling.h"
 
 namespace propcam::render {
 namespace {
 
 using detail::Bsdf;
+using detail::BsdfSample;
 using detail::Frame;
 using detail::Rng;
 
@@ -55,54 +57,57 @@ class PathIntegrator {
   PathResult trace(Eigen::Vector3f origin, Eigen::Vector3f direction, Rng& rng, bool with_props) const {
     PathResult result;
     Eigen::Vector3f throughput = Eigen::Vector3f::Ones();
+    // Product of eta^2 over refractions: Russian roulette looks at the
+    // throughput without the n^2 radiance scaling that cancels on exit.
+    float eta_scale = 1.f;
     float previous_bsdf_pdf = 0.f;
-    for (int bounce = 0;; ++bounce) {
+    for (int bounce = 0; bounce <= max_bounces_; ++bounce) {
       RayHit hit;
       ++result.rays;
-      if (!scene_.intersect(origin, direction, kInfinity, with_props, hit)) {
-        if (lights_.environment) {
-          const Eigen::Vector3f le = lights_.environment->radiance(direction);
-          const float weight =
-              bounce == 0 ? 1.f : detail::power_heuristic(previous_bsdf_pdf, lights_.environment->pdf(direction));
-          result.radiance += throughput.cwiseProduct(le) * weight;
-        }
-        break;
-      }
+      const bool found = scene_.intersect(origin, direction, kInfinity, with_props, hit);
+      // Lights met by this ray before the surface: seen directly by the camera,
+      // or found by BSDF sampling (MIS-weighted against light sampling).
+      bool light_in_front = false;
+      result.radiance += throughput.cwiseProduct(
+          emitted_along(origin, direction, found ? hit.t : kInfinity, bounce == 0, previous_bsdf_pdf, light_in_front));
+      if (!found) break;
       const SurfacePoint sp = scene_.surface(hit, origin, direction);
       if (sp.layer == Layer::Prop) {
         result.touched_prop = true;
         if (bounce == 0) result.prop_primary = true;
       }
       if (sp.material->type == Material::Type::Emissive) {
-        // Emitters are sampled by next-event estimation; count them only when seen directly.
-        if (bounce == 0) result.radiance += throughput.cwiseProduct(sp.material->emission);
+        // An emissive surface is found by BSDF sampling only (nothing samples
+        // it directly), unless a light of the rig stands in front of it: then
+        // that light stands for it (synthetic rooms' panels) and it is not
+        // counted twice.
+        if (!light_in_front) result.radiance += throughput.cwiseProduct(sp.material->emission);
         break;
       }
       if (bounce >= max_bounces_) break;
 
       const Frame frame(sp.shading_normal);
       const Eigen::Vector3f wo = frame.to_local(-direction);
-      const Bsdf bsdf(*sp.material, sp.albedo);
-      const Eigen::Vector3f shadow_origin = offset_origin(sp.position, sp.geometric_normal);
-      result.radiance += throughput.cwiseProduct(direct_light(sp, frame, wo, bsdf, shadow_origin, rng,
-                                                             with_props, result));
+      const Bsdf bsdf(*sp.material, sp.albedo, sp.front_face);
+      result.radiance += throughput.cwiseProduct(direct_light(sp, frame, wo, bsdf, rng, with_props, result));
 
-      Eigen::Vector3f wi_local;
+      BsdfSample bs;
       const float u0 = rng.uniform(), u1 = rng.uniform(), u2 = rng.uniform();
-      if (!bsdf.sample(wo, u0, u1, u2, wi_local)) break;
-      const float pdf = bsdf.pdf(wo, wi_local);
-      if (!(pdf > 0.f)) break;
-      const Eigen::Vector3f wi = frame.to_world(wi_local);
-      if (wi.dot(sp.geometric_normal) <= 0.f) break;  // shading normal sent it below the surface
-      throughput = throughput.cwiseProduct(bsdf.eval(wo, wi_local)) * (wi_local.z() / pdf);
-      previous_bsdf_pdf = pdf;
+      if (!bsdf.sample(wo, u0, u1, u2, bs)) break;
+      const Eigen::Vector3f wi = frame.to_world(bs.wi);
+      const float cos_geometric = wi.dot(sp.geometric_normal);
+      // The shading normal sent it to the other side of the actual surface.
+      if (cos_geometric == 0.f || (cos_geometric > 0.f) != (bs.wi.z() > 0.f)) break;
+      throughput = throughput.cwiseProduct(bs.f) * (std::abs(bs.wi.z()) / bs.pdf);
+      if (bs.transmitted) eta_scale *= bsdf.eta() * bsdf.eta();
+      previous_bsdf_pdf = bs.pdf;
       if (bounce + 1 >= kRussianRouletteStartBounce) {
-        const float survive = std::min(kMaxSurvivalProbability, throughput.maxCoeff());
+        const float survive = std::min(kMaxSurvivalProbability, throughput.maxCoeff() * eta_scale);
         if (rng.uniform() >= survive) break;
         throughput /= survive;
       }
       if (!throughput.allFinite()) break;
-      origin = shadow_origin;
+      origin = offset_origin(sp.position, cos_geometric > 0.f ? sp.geometric_normal : Eigen::Vector3f(-sp.geometric_normal));
       direction = wi;
     }
     const float lum = 0.2126f * result.radiance.x() + 0.7152f * result.radiance.y() + 0.0722f * result.radiance.z();
@@ -125,38 +130,79 @@ class PathIntegrator {
     return true;
   }
 
-  Eigen::Vector3f direct_light(const SurfacePoint& sp, const Frame& frame, const Eigen::Vector3f& wo,
-                               const Bsdf& bsdf, const Eigen::Vector3f& shadow_origin, Rng& rng, bool with_props,
-                               PathResult& result) const {
+  // Radiance of the lights the ray origin + t*direction meets before t_hit
+  // (area and sphere lights; suns and the environment when it escapes).
+  // `camera`: the ray is the camera's, weight 1; otherwise it was sampled from
+  // a BSDF with density bsdf_pdf, weighted by the power heuristic.
+  Eigen::Vector3f emitted_along(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction, float t_hit,
+                                bool camera, float bsdf_pdf, bool& light_in_front) const {
+    const auto weight = [&](float light_pdf) { return camera ? 1.f : detail::power_heuristic(bsdf_pdf, light_pdf); };
     Eigen::Vector3f sum = Eigen::Vector3f::Zero();
-    for (const AreaLight& light : lights_.area_lights) {
-      const float s = rng.uniform(), t = rng.uniform();
-      const Eigen::Vector3f point = light.corner + s * light.edge_u + t * light.edge_v;
-      Eigen::Vector3f to_light = point - shadow_origin;
-      const float dist2 = to_light.squaredNorm();
-      if (dist2 <= 1e-12f) continue;
-      const float dist = std::sqrt(dist2);
-      to_light /= dist;
-      const float cos_light = -to_light.dot(light.normal());
-      if (cos_light <= 0.f) continue;
-      const Eigen::Vector3f wi = frame.to_local(to_light);
-      if (wi.z() <= 0.f || to_light.dot(sp.geometric_normal) <= 0.f) continue;
+    float t = 0.f, light_pdf = 0.f;
+    // The same visibility rule as the shadow rays: blocked only by a surface
+    // nearer than the shortened distance.
+    const auto in_front = [&](float t_light) { return t_light * (1.f - kShadowShortening) < t_hit; };
+    for (const AreaLight& light : lights_.area_lights)
+      if (light.intersect(origin, direction, t, light_pdf) && in_front(t)) {
+        sum += light.radiance * weight(light_pdf);
+        light_in_front = true;
+      }
+    for (const SphereLight& light : lights_.sphere_lights)
+      if (light.intersect(origin, direction, t, light_pdf) && in_front(t)) {
+        sum += light.radiance * weight(light_pdf);
+        light_in_front = true;
+      }
+    if (t_hit < kInfinity) return sum;
+    for (const SunLight& sun : lights_.suns) {
+      const float p = sun.pdf(direction);
+      if (p > 0.f) sum += sun.radiance() * weight(p);
+    }
+    if (lights_.environment) sum += lights_.environment->radiance(direction) * weight(lights_.environment->pdf(direction));
+    return sum;
+  }
+
+  // Next-event estimation: one sample toward every light, MIS-weighted
+  // against the BSDF's density for the same direction. Dielectrics also
+  // receive light through the surface (wi.z < 0).
+  Eigen::Vector3f direct_light(const SurfacePoint& sp, const Frame& frame, const Eigen::Vector3f& wo,
+                               const Bsdf& bsdf, Rng& rng, bool with_props, PathResult& result) const {
+    const auto connect = [&](const LightSample& ls) -> Eigen::Vector3f {
+      if (!(ls.pdf > 0.f) || !std::isfinite(ls.pdf)) return Eigen::Vector3f::Zero();
+      const float cos_geometric = ls.direction.dot(sp.geometric_normal);
+      const Eigen::Vector3f wi = frame.to_local(ls.direction);
+      if (cos_geometric == 0.f || (cos_geometric > 0.f) != (wi.z() > 0.f)) return Eigen::Vector3f::Zero();
+      if (wi.z() < 0.f && !bsdf.has_transmission()) return Eigen::Vector3f::Zero();
       const Eigen::Vector3f f = bsdf.eval(wo, wi);
-      if (f.isZero()) continue;
-      if (shadowed(shadow_origin, to_light, dist * (1.f - kShadowShortening), with_props, result)) continue;
-      sum += f.cwiseProduct(light.radiance) * (wi.z() * cos_light * light.area() / dist2);
+      if (!(f.maxCoeff() > 0.f)) return Eigen::Vector3f::Zero();
+      const Eigen::Vector3f origin =
+          offset_origin(sp.position, cos_geometric > 0.f ? sp.geometric_normal : Eigen::Vector3f(-sp.geometric_normal));
+      const float distance = std::isinf(ls.distance) ? kInfinity : ls.distance * (1.f - kShadowShortening);
+      if (shadowed(origin, ls.direction, distance, with_props, result)) return Eigen::Vector3f::Zero();
+      const float weight = detail::power_heuristic(ls.pdf, bsdf.pdf(wo, wi));
+      return f.cwiseProduct(ls.radiance) * (std::abs(wi.z()) * weight / ls.pdf);
+    };
+    Eigen::Vector3f sum = Eigen::Vector3f::Zero();
+    // Two numbers per light whether it emits or not: the streams of the
+    // with-prop and without-prop paths stay aligned.
+    for (const AreaLight& light : lights_.area_lights) {
+      const float u1 = rng.uniform(), u2 = rng.uniform();
+      sum += connect(light.sample(sp.position, u1, u2));
+    }
+    for (const SphereLight& light : lights_.sphere_lights) {
+      const float u1 = rng.uniform(), u2 = rng.uniform();
+      sum += connect(light.sample(sp.position, u1, u2));
+    }
+    for (const SunLight& sun : lights_.suns) {
+      const float u1 = rng.uniform(), u2 = rng.uniform();
+      sum += connect(sun.sample(u1, u2));
     }
     if (lights_.environment) {
-      float pdf = 0.f;
-      const Eigen::Vector3f dir = lights_.environment->sample(rng.uniform(), rng.uniform(), pdf);
-      const Eigen::Vector3f wi = frame.to_local(dir);
-      if (pdf > 0.f && wi.z() > 0.f && dir.dot(sp.geometric_normal) > 0.f) {
-        const Eigen::Vector3f f = bsdf.eval(wo, wi);
-        if (!f.isZero() && !shadowed(shadow_origin, dir, kInfinity, with_props, result)) {
-          const float weight = detail::power_heuristic(pdf, bsdf.pdf(wo, wi));
-          sum += f.cwiseProduct(lights_.environment->radiance(dir)) * (wi.z() * weight / pdf);
-        }
-      }
+      const float u1 = rng.uniform(), u2 = rng.uniform();
+      LightSample ls;
+      ls.direction = lights_.environment->sample(u1, u2, ls.pdf);
+      ls.distance = kInfinity;
+      ls.radiance = lights_.environment->radiance(ls.direction);
+      sum += connect(ls);
     }
     return sum;
   }

@@ -1,4 +1,5 @@
-// Random numbers and BSDFs used by the path tracer (internal to render/).
+// Random numbers, frames and sampling helpers used by the path tracer (internal
+// to render/); the BSDFs are in bsdf.h.
 #pragma once
 
 #include <Eigen/Core>
@@ -6,8 +7,6 @@
 #include <cmath>
 #include <cstdint>
 #include <numbers>
-
-#include "propcam/render/mesh.h"
 
 namespace propcam::render::detail {
 
@@ -68,94 +67,19 @@ inline float schlick_weight(float cos_theta) {
   return (m * m) * (m * m) * m;
 }
 
-// Isotropic GGX (Trowbridge-Reitz) in the local frame (z = normal).
-struct Ggx {
-  float alpha;
-  float D(const Eigen::Vector3f& h) const {
-    const float c2 = h.z() * h.z();
-    const float a2 = alpha * alpha;
-    const float d = c2 * (a2 - 1.f) + 1.f;
-    return a2 / (kPi * d * d);
-  }
-  float G1(const Eigen::Vector3f& v) const {
-    const float c = std::abs(v.z());
-    const float a2 = alpha * alpha;
-    return 2.f * c / (c + std::sqrt(a2 + (1.f - a2) * c * c));
-  }
-  Eigen::Vector3f sample_half(float u1, float u2) const {
-    const float tan2 = alpha * alpha * u1 / std::max(1.f - u1, 1e-7f);
-    const float cos_t = 1.f / std::sqrt(1.f + tan2);
-    const float sin_t = std::sqrt(std::max(0.f, 1.f - cos_t * cos_t));
-    const float phi = 2.f * kPi * u2;
-    return {sin_t * std::cos(phi), sin_t * std::sin(phi), cos_t};
-  }
-};
-
-// A material evaluated at one point, in the local shading frame.
-class Bsdf {
- public:
-  Bsdf(const Material& m, const Eigen::Vector3f& albedo) : type_(m.type), albedo_(albedo) {
-    ggx_.alpha = std::clamp(m.roughness, 0.02f, 1.f);
-    specular_ = std::clamp(m.specular, 0.f, 1.f);
-    // Probability of sampling the specular lobe: always some, more for shiny bases.
-    spec_prob_ = type_ == Material::Type::Metal ? 1.f
-                 : type_ == Material::Type::Glossy ? std::clamp(0.15f + 2.f * specular_, 0.15f, 0.6f)
-                                                   : 0.f;
-  }
-
-  Eigen::Vector3f eval(const Eigen::Vector3f& wo, const Eigen::Vector3f& wi) const {
-    if (wo.z() <= 0.f || wi.z() <= 0.f) return Eigen::Vector3f::Zero();
-    Eigen::Vector3f f = Eigen::Vector3f::Zero();
-    if (type_ != Material::Type::Metal) {
-      const float coat = type_ == Material::Type::Glossy ? 1.f - specular_ : 1.f;
-      f += albedo_ * (kInvPi * coat);
-    }
-    if (spec_prob_ > 0.f) f += specular(wo, wi);
-    return f;
-  }
-
-  float pdf(const Eigen::Vector3f& wo, const Eigen::Vector3f& wi) const {
-    if (wo.z() <= 0.f || wi.z() <= 0.f) return 0.f;
-    float p = (1.f - spec_prob_) * wi.z() * kInvPi;
-    if (spec_prob_ > 0.f) {
-      const Eigen::Vector3f h = (wo + wi).normalized();
-      p += spec_prob_ * ggx_.D(h) * h.z() / (4.f * std::max(wo.dot(h), 1e-7f));
-    }
-    return p;
-  }
-
-  // Returns false when no direction was produced.
-  bool sample(const Eigen::Vector3f& wo, float u0, float u1, float u2, Eigen::Vector3f& wi) const {
-    if (wo.z() <= 0.f) return false;
-    if (u0 < spec_prob_) {
-      const Eigen::Vector3f h = ggx_.sample_half(u1, u2);
-      wi = 2.f * wo.dot(h) * h - wo;
-    } else {
-      wi = cosine_hemisphere(u1, u2);
-    }
-    return wi.z() > 0.f;
-  }
-
- private:
-  Eigen::Vector3f specular(const Eigen::Vector3f& wo, const Eigen::Vector3f& wi) const {
-    const Eigen::Vector3f h = (wo + wi).normalized();
-    const float fw = schlick_weight(wo.dot(h));
-    const Eigen::Vector3f f0 = type_ == Material::Type::Metal ? albedo_ : Eigen::Vector3f::Constant(specular_);
-    const Eigen::Vector3f fresnel = f0 + (Eigen::Vector3f::Ones() - f0) * fw;
-    const float g = ggx_.G1(wo) * ggx_.G1(wi);
-    return fresnel * (ggx_.D(h) * g / (4.f * wo.z() * wi.z()));
-  }
-
-  Material::Type type_;
-  Eigen::Vector3f albedo_;
-  Ggx ggx_{0.25f};
-  float specular_ = 0.04f;
-  float spec_prob_ = 0.f;
-};
-
+// MIS weight a^2 / (a^2 + b^2) of the strategy with density a, written as a
+// ratio so that large densities (near-delta lobes, the sun) cannot overflow.
 inline float power_heuristic(float a, float b) {
-  const float a2 = a * a, b2 = b * b;
-  return a2 + b2 > 0.f ? a2 / (a2 + b2) : 0.f;
+  if (std::isinf(a)) return std::isinf(b) ? 0.5f : 1.f;
+  if (std::isinf(b)) return 0.f;
+  if (!(a > 0.f)) return 0.f;
+  if (!(b > 0.f)) return 1.f;
+  if (a >= b) {
+    const float r = b / a;
+    return 1.f / (1.f + r * r);
+  }
+  const float r = a / b;
+  return r * r / (1.f + r * r);
 }
 
 }  // namespace propcam::render::detail

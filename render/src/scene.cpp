@@ -152,7 +152,8 @@ SurfacePoint Scene::surface(const RayHit& hit, const Eigen::Vector3f& origin,
   Eigen::Vector3f ng = (p1 - p0).cross(p2 - p0);
   const float ng_len = ng.norm();
   ng = ng_len > 0.f ? Eigen::Vector3f(ng / ng_len) : Eigen::Vector3f(-direction);
-  if (ng.dot(direction) > 0.f) ng = -ng;  // two-sided: face the viewer
+  sp.front_face = ng.dot(direction) <= 0.f;
+  if (!sp.front_face) ng = -ng;  // two-sided: face the viewer
   sp.geometric_normal = ng;
   Eigen::Vector3f ns = ng;
   if (!mesh.normals.empty()) {

@@ -149,6 +149,87 @@ TEST(Cli, BenchReportsStagesAndPlots) {
   EXPECT_GT(fs::file_size(plots + "/camera_ransac.png"), 1000u);
 }
 
+// The example scene (render/examples/cornell) copied to a temporary folder
+// and shrunk to `width` x `height` (intrinsics scaled with it).
+std::string example_scene_copy(const std::string& name, int width, int height) {
+  const fs::path dir = temp(name);
+  fs::remove_all(dir);
+  fs::copy(fs::path(PROPCAM_SOURCE_DIR) / "render" / "examples" / "cornell", dir, fs::copy_options::recursive);
+  std::ifstream in(dir / "scene.json");
+  json scene = json::parse(in);
+  const double scale = static_cast<double>(width) / scene["camera"]["width"].get<double>();
+  for (const char* k : {"fx", "fy"}) scene["camera"]["K"][k] = scene["camera"]["K"][k].get<double>() * scale;
+  scene["camera"]["K"]["cx"] = (width - 1) / 2.0;
+  scene["camera"]["K"]["cy"] = (height - 1) / 2.0;
+  scene["camera"]["width"] = width;
+  scene["camera"]["height"] = height;
+  std::ofstream(dir / "scene.json") << scene.dump(2);
+  return (dir / "scene.json").string();
+}
+
+TEST(Cli, RenderTheExampleScene) {
+  const std::string scene = example_scene_copy("cornell_small", 80, 60);
+  const std::string out = temp("cornell.exr");
+  const CliRun r = propcam("render " + scene + " --spp 4 --bounces 4 --json -o " + out);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const json summary = json_tail(r.out);
+  EXPECT_EQ(summary["width"], 80);
+  EXPECT_EQ(summary["height"], 60);
+  EXPECT_EQ(summary["spp"], 4);
+  EXPECT_GT(summary["rays"].get<double>(), 80 * 60 * 4);
+  EXPECT_GT(summary["rays_per_s"].get<double>(), 0.0);
+  const cv::Mat img = propcam::capture::read_image_float(out);
+  ASSERT_EQ(img.cols, 80);
+  ASSERT_EQ(img.rows, 60);
+  EXPECT_TRUE(cv::checkRange(img));
+  const cv::Scalar mean = cv::mean(img);
+  EXPECT_GT(mean[0] + mean[1] + mean[2], 0.05) << "not black";
+  // A PNG through a time budget (passes of 1, 2, ... spp; at least one).
+  const std::string png = temp("cornell.png");
+  const CliRun timed = propcam("render " + scene + " --time 0.5 --json -o " + png);
+  ASSERT_EQ(timed.exit_code, 0) << timed.out;
+  EXPECT_GE(json_tail(timed.out)["spp"].get<int>(), 1);
+  EXPECT_EQ(propcam::capture::load_photo_linear(png).cols, 80);
+}
+
+TEST(Cli, RenderABrokenSceneIsAClearError) {
+  const std::string scene = example_scene_copy("cornell_broken", 16, 12);
+  std::ifstream in(scene);
+  json broken = json::parse(in);
+  broken["camera"]["K"].erase("fy");
+  std::ofstream(scene) << broken.dump(2);
+  const std::string out = temp("broken.png");
+  CliRun r = propcam("render " + scene + " --spp 1 -o " + out);
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.out.find("camera.K.fy: missing"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find(scene), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(out));
+  // A file outside the scene's folder.
+  broken = json::parse(std::ifstream(example_scene_copy("cornell_escape", 16, 12)));
+  broken["meshes"][0]["file"] = "../cornell_small/box.obj";
+  const std::string escape = temp("cornell_escape/scene.json");
+  std::ofstream(escape) << broken.dump(2);
+  r = propcam("render " + escape + " --spp 1 -o " + out);
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.out.find("meshes[0].file"), std::string::npos) << r.out;
+  // Not JSON at all, and --spp with --time.
+  const std::string junk = temp("junk_scene.json");
+  std::ofstream(junk) << "camera: yes";
+  r = propcam("render " + junk + " -o " + out);
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.out.find("invalid JSON"), std::string::npos) << r.out;
+  EXPECT_NE(propcam("render " + scene + " --spp 2 --time 1 -o " + out).exit_code, 0);
+  EXPECT_FALSE(fs::exists(out));
+}
+
+TEST(Cli, CompositeAcceptsTheNewMaterials) {
+  for (const char* material : {"glass", "plastic"}) {
+    const CliRun r = propcam("composite " + fixture_photo() + " --prop sphere_plinth --material " +
+                             std::string(material) + " --at 80,95 --spp 1 -o " + temp(std::string(material) + ".png"));
+    EXPECT_EQ(r.exit_code, 0) << material << ": " << r.out;
+  }
+}
+
 }  // namespace
 
 namespace {

@@ -145,6 +145,29 @@ TEST(MeshIo, RoundTripKeepsMaterialParametersTexturesAndUvs) {
   EXPECT_NEAR(loaded_gold.roughness, 0.15f, 1e-5f);
 }
 
+TEST(MeshIo, RoundTripKeepsGlassAndItsIndex) {
+  const fs::path folder = test_folder();
+  Mesh cube = make_prop("cube");
+  for (auto& m : cube.materials) {
+    m.type = Material::Type::Dielectric;
+    m.ior = 1.33f;
+    m.roughness = 0.1f;
+  }
+  save_obj(cube, (folder / "glass.obj").string());
+  const Mesh loaded = load_mesh_file((folder / "glass.obj").string());
+  for (const Material& m : loaded.materials) {
+    EXPECT_EQ(m.type, Material::Type::Dielectric);
+    EXPECT_NEAR(m.ior, 1.33f, 1e-5f);
+    EXPECT_NEAR(m.roughness, 0.1f, 1e-5f);
+  }
+  // Hand-written MTL: illum 7 without Ni is glass of index 1.5.
+  write_file(folder / "g.obj", "mtllib g.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl g\nf 1 2 3\n");
+  write_file(folder / "g.mtl", "newmtl g\nKd 1 1 1\nillum 7\n");
+  const Mesh hand = load_mesh_file((folder / "g.obj").string());
+  EXPECT_EQ(hand.materials.at(hand.material_ids.at(0)).type, Material::Type::Dielectric);
+  EXPECT_NEAR(hand.materials.at(hand.material_ids.at(0)).ior, 1.5f, 1e-6f);
+}
+
 TEST(MeshIo, RoundTripHandlesSpacesInFileNames) {
   const fs::path folder = test_folder();
   Mesh mesh = make_prop("cube");

@@ -1,17 +1,52 @@
 // Light sources: one-sided area quads (sources seen in the photo, ceiling
-// panels) and an environment map (light from outside the frame).
+// panels), spheres (bulbs), suns (distant discs) and an environment map
+// (light from outside the frame).
+//
+// Units: linear RGB, relative to the photo's exposure. Area and sphere lights
+// and the environment give radiance (W/sr/m^2); a sun gives the irradiance
+// (W/m^2) it delivers to a surface facing it, whatever its angular size.
+//
+// Lights are not geometry: they cast no shadows and rays pass through them.
+// The path tracer samples each one toward every shading point (next-event
+// estimation) and also counts it when a BSDF-sampled ray meets it, weighting
+// the two with the power heuristic; the camera sees them directly.
+// A light with no area, no radius or no power emits nothing and is skipped.
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <opencv2/core.hpp>
+#include <limits>
 #include <memory>
+#include <numbers>
 #include <string>
 #include <vector>
 
 namespace propcam::render {
 
+// A direction from a receiving point toward a light, and what arrives along it.
+struct LightSample {
+  Eigen::Vector3f direction = Eigen::Vector3f::Zero();  // unit, toward the light
+  float distance = 0.f;  // to the sampled point on the light; infinity for the sun and the environment
+  Eigen::Vector3f radiance = Eigen::Vector3f::Zero();  // arriving along -direction
+  float pdf = 0.f;  // solid-angle density of `direction`; 0: no sample (nothing arrives)
+};
+
+// Below this area (m^2) a quad's normal and its pdf dist^2 / (cos * area) are
+// numerically meaningless; such a light emits nothing.
+constexpr float kMinAreaLightArea = 1e-10f;
+// Below this radius (m) a sphere light emits nothing (its pdf 1 / solid angle overflows).
+constexpr float kMinSphereLightRadius = 1e-6f;
+// The Sun's angular radius seen from the Earth, in degrees.
+constexpr double kSunAngularRadiusDeg = 0.265;
+// Sun cones are clamped to [kMinSunAngularRadius, kMaxSunAngularRadius]
+// radians: below the minimum a float direction cannot tell inside from outside
+// (and the radiance E / (pi sin^2) heads for overflow); 0 means "as small as possible".
+constexpr double kMinSunAngularRadius = 1e-4;
+constexpr double kMaxSunAngularRadius = 0.5;
+
 // Parallelogram corner + s*edge_u + t*edge_v, s,t in [0,1]; emits radiance on
-// the side of edge_u x edge_v.
+// the side of edge_u x edge_v. Sampled uniformly by area.
 struct AreaLight {
   Eigen::Vector3f corner = Eigen::Vector3f::Zero();
   Eigen::Vector3f edge_u = Eigen::Vector3f::UnitX();
@@ -21,6 +56,41 @@ struct AreaLight {
   Eigen::Vector3f normal() const { return edge_u.cross(edge_v).normalized(); }
   float area() const { return edge_u.cross(edge_v).norm(); }
   Eigen::Vector3f centre() const { return corner + 0.5f * (edge_u + edge_v); }
+
+  bool emits() const;
+  LightSample sample(const Eigen::Vector3f& from, float u1, float u2) const;
+  // The ray origin + t*direction (unit) meets the emitting side at t > 0;
+  // `pdf` is then the density sample(origin, ...) has for `direction`.
+  bool intersect(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction, float& t, float& pdf) const;
+};
+
+// A sphere of uniform radiance emitting outward. From outside it is sampled
+// uniformly within the cone of directions it subtends; points inside receive
+// nothing from it.
+struct SphereLight {
+  Eigen::Vector3f center = Eigen::Vector3f::Zero();
+  float radius = 0.1f;
+  Eigen::Vector3f radiance = Eigen::Vector3f::Ones();
+
+  bool emits() const;
+  LightSample sample(const Eigen::Vector3f& from, float u1, float u2) const;
+  bool intersect(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction, float& t, float& pdf) const;
+};
+
+// A distant disc of uniform radiance: all directions within `angular_radius`
+// of `direction`. `irradiance` is what a surface facing it receives, so its
+// radiance is irradiance / (pi sin^2(angular_radius)) and a surface at angle
+// theta receives irradiance * cos(theta) (while the disc is above its horizon).
+struct SunLight {
+  Eigen::Vector3f direction = Eigen::Vector3f::UnitY();  // toward the sun (normalised on use)
+  double angular_radius = kSunAngularRadiusDeg * std::numbers::pi / 180.0;  // radians
+  Eigen::Vector3f irradiance = Eigen::Vector3f::Ones();  // W/m^2 normal to `direction`
+
+  bool emits() const;
+  Eigen::Vector3f radiance() const;
+  LightSample sample(float u1, float u2) const;
+  // Density of sample() for a direction: uniform in the cone, 0 outside.
+  float pdf(const Eigen::Vector3f& direction) const;
 };
 
 // Equirectangular environment in world coordinates (Y up). Column 0 is the
@@ -37,6 +107,7 @@ class EnvironmentLight {
   Eigen::Vector3f scale() const { return scale_; }
   void set_scale(const Eigen::Vector3f& scale) { scale_ = scale; }
 
+  // 0 for a non-finite direction.
   Eigen::Vector3f radiance(const Eigen::Vector3f& direction) const;
   // Samples a direction from two uniform numbers; returns its solid-angle pdf.
   Eigen::Vector3f sample(float u1, float u2, float& pdf) const;
@@ -54,12 +125,19 @@ class EnvironmentLight {
   float total_weight_ = 0.f;
 };
 
+// Every light of a scene. Lights are indexed in this order: area lights,
+// sphere lights, suns, then the environment (if any); count() and only()
+// follow it.
 struct LightRig {
   std::vector<AreaLight> area_lights;
+  std::vector<SphereLight> sphere_lights;
+  std::vector<SunLight> suns;
   std::shared_ptr<EnvironmentLight> environment;  // may be null
 
-  int count() const { return static_cast<int>(area_lights.size()) + (environment ? 1 : 0); }
-  // A rig holding only light `index` (area lights first, then the environment).
+  int count() const {
+    return static_cast<int>(area_lights.size() + sphere_lights.size() + suns.size()) + (environment ? 1 : 0);
+  }
+  // A rig holding only light `index`; throws std::out_of_range.
   LightRig only(int index) const;
 };
 

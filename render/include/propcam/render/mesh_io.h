@@ -2,9 +2,11 @@
 //
 // MTL -> Material (save_obj writes the inverse):
 //   Ke non-zero                          -> Emissive: emission = Ke, albedo = Kd
+//   illum 4, 6 or 7 (refraction)         -> Dielectric: ior = Ni (1.5 when absent or 1),
+//                                                     roughness from Ns
 //   illum 3, or a bright Ks over a dark
 //   Kd (max(Ks) >= 0.5, max(Kd) <= 0.1)  -> Metal:    albedo = Ks, roughness from Ns
-//   Ks non-zero                          -> Glossy:   albedo = Kd, specular = max(Ks),
+//   Ks non-zero                          -> Plastic:  albedo = Kd, specular = max(Ks),
 //                                                     roughness from Ns
 //   otherwise                            -> Diffuse:  albedo = Kd
 // Roughness (GGX alpha) = sqrt(2 / (Ns + 2)); colours are clamped to [0, 1].

@@ -1,6 +1,8 @@
-// CPU path tracer on Embree: next-event estimation for area lights, MIS
-// between BSDF and environment sampling, Russian roulette, and the one-pass
-// differential render (I_obj and I_noobj from shared random numbers).
+// CPU path tracer on Embree: next-event estimation to every light (area,
+// sphere, sun, environment), MIS (power heuristic) between light and BSDF
+// sampling for all of them, Russian roulette, and the one-pass differential
+// render (I_obj and I_noobj from shared random numbers). Lights and materials:
+// lights.h, mesh.h, render/README.md.
 #pragma once
 
 #include <cstdint>

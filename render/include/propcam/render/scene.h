@@ -25,6 +25,10 @@ struct SurfacePoint {
   Eigen::Vector3f position;
   Eigen::Vector3f geometric_normal;  // unit, facing the incoming ray
   Eigen::Vector3f shading_normal;    // unit, same hemisphere as geometric_normal
+  // The ray arrived on the side the triangle's counter-clockwise winding faces
+  // (outside of a closed, outward-wound mesh); dielectrics refract with ior
+  // when true, with 1/ior when false.
+  bool front_face = true;
   const Material* material = nullptr;
   Eigen::Vector3f albedo;            // material albedo times texture
   Layer layer = Layer::Background;

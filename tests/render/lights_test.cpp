@@ -1,0 +1,218 @@
+// Light sources in isolation: analytic irradiance from their own samples,
+// sample/intersect pdf agreement, degenerate lights, environment texel
+// clamping and the rig's light order.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <numbers>
+
+#include "propcam/render/lights.h"
+#include "sampling.h"
+
+namespace propcam::render {
+namespace {
+
+using detail::Rng;
+using Eigen::Vector3f;
+
+constexpr double kPi = std::numbers::pi;
+constexpr int kIrradianceSamples = 20000;
+// Irradiance estimates from light samples are within this relative error
+// (cone sampling of a sphere or the sun has almost no variance).
+constexpr double kIrradianceTolerance = 5e-3;
+// pdf from sample() and from intersect()/pdf() for the same direction (relative, float round-off).
+constexpr double kPdfAgreement = 1e-3;
+
+// Irradiance at `point` with unit `normal` from a light's samples.
+template <typename SampleFn>
+double irradiance(const Vector3f& normal, SampleFn&& sample, uint64_t seed) {
+  Rng rng(seed, 1);
+  double sum = 0.0;
+  for (int i = 0; i < kIrradianceSamples; ++i) {
+    const float u1 = rng.uniform(), u2 = rng.uniform();
+    const LightSample s = sample(u1, u2);
+    if (!(s.pdf > 0.f)) continue;
+    sum += s.radiance.x() * std::max(0.f, s.direction.dot(normal)) / s.pdf;
+  }
+  return sum / kIrradianceSamples;
+}
+
+TEST(Lights, SphereLightIrradianceIsPiLTimesRadiusOverDistanceSquared) {
+  SphereLight light;
+  light.center = {0.f, 2.f, 0.f};
+  light.radius = 0.5f;
+  light.radiance = Vector3f::Constant(3.f);
+  const Vector3f p = Vector3f::Zero();
+  const double expected = kPi * 3.0 * std::pow(0.5 / 2.0, 2);
+  const auto sample = [&](float u1, float u2) { return light.sample(p, u1, u2); };
+  EXPECT_NEAR(irradiance(Vector3f::UnitY(), sample, 1), expected, expected * kIrradianceTolerance);
+  // A receiver tilted by 30 degrees (the cone, 14.5 degrees wide, stays above its horizon).
+  const Vector3f tilted(std::sin(kPi / 6), std::cos(kPi / 6), 0.f);
+  EXPECT_NEAR(irradiance(tilted, sample, 2), expected * std::cos(kPi / 6), expected * kIrradianceTolerance);
+}
+
+TEST(Lights, SunIrradianceIsIntensityTimesCosine) {
+  for (double theta_deg : {0.0, 30.0, 80.0}) {
+    SunLight sun;
+    const double t = theta_deg * kPi / 180.0;
+    sun.direction = Vector3f(static_cast<float>(std::sin(t)), static_cast<float>(std::cos(t)), 0.f);
+    sun.irradiance = Vector3f::Constant(5.f);
+    const auto sample = [&](float u1, float u2) { return sun.sample(u1, u2); };
+    const double expected = 5.0 * std::cos(t);
+    EXPECT_NEAR(irradiance(Vector3f::UnitY(), sample, 3), expected, expected * kIrradianceTolerance) << theta_deg;
+  }
+}
+
+TEST(Lights, SampledDirectionsHitTheLightWithTheSamePdf) {
+  AreaLight area;  // a slanted parallelogram facing roughly -Y
+  area.corner = {-0.3f, 2.f, -0.2f};
+  area.edge_u = {0.6f, 0.1f, 0.f};
+  area.edge_v = {0.2f, 0.f, 0.5f};
+  area.radiance = Vector3f::Ones();
+  ASSERT_LT(area.normal().y(), 0.f);
+  SphereLight sphere;
+  sphere.center = {1.f, 1.5f, -0.5f};
+  sphere.radius = 0.2f;
+  SunLight sun;
+  sun.direction = Vector3f(0.3f, 1.f, 0.2f).normalized();
+  const Vector3f p(0.1f, 0.f, 0.05f);
+  Rng rng(4, 4);
+  for (int i = 0; i < 2000; ++i) {
+    const float u1 = rng.uniform(), u2 = rng.uniform();
+    float t = 0.f, pdf = 0.f;
+    const LightSample a = area.sample(p, u1, u2);
+    ASSERT_GT(a.pdf, 0.f);
+    ASSERT_TRUE(area.intersect(p, a.direction, t, pdf));
+    EXPECT_NEAR(t, a.distance, 1e-4f);
+    EXPECT_NEAR(pdf, a.pdf, kPdfAgreement * a.pdf);
+    const LightSample s = sphere.sample(p, u1, u2);
+    ASSERT_GT(s.pdf, 0.f);
+    ASSERT_TRUE(sphere.intersect(p, s.direction, t, pdf));
+    EXPECT_NEAR(t, s.distance, 1e-3f);
+    EXPECT_NEAR(pdf, s.pdf, kPdfAgreement * s.pdf);
+    const LightSample d = sun.sample(u1, u2);
+    EXPECT_NEAR(sun.pdf(d.direction), d.pdf, kPdfAgreement * d.pdf);
+    EXPECT_TRUE(std::isinf(d.distance));
+  }
+  float t = 0.f, pdf = 0.f;
+  EXPECT_FALSE(area.intersect(p, Vector3f(0.f, -1.f, 0.f), t, pdf));      // away from it
+  EXPECT_FALSE(area.intersect({0.f, 3.f, 0.f}, -Vector3f::UnitY(), t, pdf));  // at its back
+  EXPECT_EQ(sun.pdf(-sun.direction), 0.f);
+}
+
+TEST(Lights, SphereLightGivesNothingInsideItself) {
+  SphereLight sphere;
+  sphere.radius = 1.f;
+  const LightSample s = sphere.sample({0.1f, 0.2f, 0.f}, 0.3f, 0.6f);
+  EXPECT_EQ(s.pdf, 0.f);
+  float t = 0.f, pdf = 0.f;
+  EXPECT_FALSE(sphere.intersect({0.1f, 0.2f, 0.f}, Vector3f::UnitX(), t, pdf));
+}
+
+TEST(Lights, DegenerateLightsEmitNothingAndNeverNaN) {
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const float inf = std::numeric_limits<float>::infinity();
+  std::vector<AreaLight> areas(4);
+  areas[0].edge_v = Vector3f::Zero();                 // no area
+  areas[1].edge_v = areas[1].edge_u * 2.f;            // collinear edges: no area
+  areas[2].radiance = Vector3f::Zero();               // no power
+  areas[3].radiance = Vector3f(nan, 1.f, inf);        // nonsense power
+  std::vector<SphereLight> spheres(3);
+  spheres[0].radius = 0.f;
+  spheres[1].radiance = Vector3f::Zero();
+  spheres[2].radius = nan;
+  std::vector<SunLight> suns(3);
+  suns[0].irradiance = Vector3f::Zero();
+  suns[1].direction = Vector3f::Zero();
+  suns[2].direction = Vector3f(nan, 1.f, 0.f);
+  const Vector3f p(0.f, -1.f, 0.f);
+  float t = 0.f, pdf = 0.f;
+  for (const auto& a : areas) {
+    EXPECT_FALSE(a.emits());
+    EXPECT_EQ(a.sample(p, 0.5f, 0.5f).pdf, 0.f);
+    EXPECT_FALSE(a.intersect(p, Vector3f::UnitY(), t, pdf));
+  }
+  for (const auto& s : spheres) {
+    EXPECT_FALSE(s.emits());
+    EXPECT_EQ(s.sample(p, 0.5f, 0.5f).pdf, 0.f);
+    EXPECT_FALSE(s.intersect(p, Vector3f::UnitY(), t, pdf));
+  }
+  for (const auto& s : suns) {
+    EXPECT_FALSE(s.emits());
+    EXPECT_EQ(s.sample(0.5f, 0.5f).pdf, 0.f);
+    EXPECT_EQ(s.pdf(Vector3f::UnitY()), 0.f);
+    EXPECT_TRUE(s.radiance().isZero());
+  }
+  // A point sun (angle 0) or a NaN angle is the smallest cone: finite and still normalised.
+  for (double angle : {0.0, static_cast<double>(nan)}) {
+    SunLight point_sun;
+    point_sun.angular_radius = angle;
+    EXPECT_TRUE(point_sun.radiance().allFinite());
+    const LightSample s = point_sun.sample(0.5f, 0.5f);
+    EXPECT_TRUE(std::isfinite(s.pdf) && s.pdf > 0.f && s.direction.allFinite());
+    const auto sample = [&](float u1, float u2) { return point_sun.sample(u1, u2); };
+    EXPECT_NEAR(irradiance(Vector3f::UnitY(), sample, 5), 1.0, kIrradianceTolerance);
+  }
+  // A point exactly on an area light's plane or at a sphere light's surface.
+  AreaLight area;
+  EXPECT_EQ(area.sample(area.corner, 0.f, 0.f).pdf, 0.f);
+  SphereLight sphere;
+  EXPECT_EQ(sphere.sample(sphere.center + Vector3f(sphere.radius, 0.f, 0.f), 0.5f, 0.5f).pdf, 0.f);
+}
+
+TEST(Lights, EnvironmentClampsNegativeNaNAndInfiniteTexels) {
+  cv::Mat image(8, 16, CV_32FC3, cv::Scalar::all(1.0));
+  image.at<cv::Vec3f>(0, 0) = {std::numeric_limits<float>::quiet_NaN(), -1.f, 2.f};
+  image.at<cv::Vec3f>(3, 4) = {std::numeric_limits<float>::infinity(), -std::numeric_limits<float>::infinity(), 1e30f};
+  image.at<cv::Vec3f>(5, 9) = {-5.f, -0.f, 0.5f};
+  const EnvironmentLight env(image);
+  const cv::Mat& clamped = env.image();
+  EXPECT_TRUE(cv::checkRange(clamped));
+  double lo = 0, hi = 0;
+  cv::minMaxLoc(clamped.reshape(1), &lo, &hi);
+  EXPECT_GE(lo, 0.0);
+  EXPECT_LE(hi, 1e6);
+  EXPECT_EQ(clamped.at<cv::Vec3f>(0, 0), cv::Vec3f(0.f, 0.f, 2.f));
+  EXPECT_EQ(clamped.at<cv::Vec3f>(3, 4)[0], 0.f);
+  EXPECT_EQ(clamped.at<cv::Vec3f>(3, 4)[1], 0.f);
+  EXPECT_EQ(clamped.at<cv::Vec3f>(5, 9), cv::Vec3f(0.f, 0.f, 0.5f));
+  Rng rng(6, 6);
+  for (int i = 0; i < 2000; ++i) {
+    float pdf = 0.f;
+    const Vector3f d = env.sample(rng.uniform(), rng.uniform(), pdf);
+    ASSERT_TRUE(d.allFinite() && std::isfinite(pdf));
+    ASSERT_TRUE(env.radiance(d).allFinite());
+  }
+  const Vector3f bad(std::numeric_limits<float>::quiet_NaN(), 0.f, 1.f);
+  EXPECT_TRUE(env.radiance(bad).isZero());
+  EXPECT_EQ(env.pdf(bad), 0.f);
+  // An all-black (or all-invalid) map is still a valid, dark environment.
+  const EnvironmentLight dark(cv::Mat(4, 8, CV_32FC3, cv::Scalar::all(-1.0)));
+  float pdf = 0.f;
+  EXPECT_TRUE(dark.sample(0.3f, 0.7f, pdf).allFinite());
+  EXPECT_TRUE(std::isfinite(pdf) && pdf > 0.f);
+}
+
+TEST(Lights, RigOrdersAreaSphereSunThenEnvironment) {
+  LightRig rig;
+  rig.area_lights.resize(2);
+  rig.area_lights[1].radiance = Vector3f::Constant(2.f);
+  rig.sphere_lights.resize(1);
+  rig.suns.resize(1);
+  rig.environment = std::make_shared<EnvironmentLight>(cv::Mat(2, 4, CV_32FC3, cv::Scalar::all(1.0)));
+  ASSERT_EQ(rig.count(), 5);
+  EXPECT_EQ(rig.only(1).area_lights.at(0).radiance.x(), 2.f);
+  EXPECT_EQ(rig.only(2).sphere_lights.size(), 1u);
+  EXPECT_EQ(rig.only(3).suns.size(), 1u);
+  EXPECT_TRUE(rig.only(4).environment);
+  for (int i = 0; i < rig.count(); ++i) EXPECT_EQ(rig.only(i).count(), 1);
+  EXPECT_THROW(rig.only(5), std::out_of_range);
+  EXPECT_THROW(rig.only(-1), std::out_of_range);
+  rig.environment.reset();
+  EXPECT_EQ(rig.count(), 4);
+  EXPECT_THROW(rig.only(4), std::out_of_range);
+}
+
+}  // namespace
+}  // namespace propcam::render
