@@ -47,18 +47,14 @@ CompositeResult composite_prop(const cv::Mat& photo_linear, const inference::Sce
   render::Scene world;
   world.add_mesh(render::mesh_from_depth(scene.depth, scene.albedo, camera), render::Layer::Background);
 
-  // Placement needs the background alone; a small separate scene is cheaper
-  // than rebuilding, and keeps `world` unchanged until the prop is known.
-  render::Scene support;
-  support.add_mesh(world.mesh(0), render::Layer::Background);
-  support.commit();
-  CompositeResult result;
-  result.placed = render::place_prop(prop, camera, support, placement);
-  render::Mesh placed_mesh = prop;
-  placed_mesh.transform(result.placed.world_from_prop);
-  const Eigen::AlignedBox3f prop_bounds = placed_mesh.bounds();
-  world.add_mesh(std::move(placed_mesh), render::Layer::Prop);
+  // The prop is an instance: the background's BVH is built once, placement
+  // looks at the background alone, and then the prop is moved into place.
+  const int prop_index = world.add_prop(prop, Eigen::Affine3f::Identity());
   world.commit();
+  CompositeResult result;
+  result.placed = render::place_prop(prop, camera, world, placement);
+  world.set_prop_transform(prop_index, result.placed.world_from_prop);
+  const Eigen::AlignedBox3f prop_bounds = world.world_bounds(prop_index);
   result.scene_build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
   const render::LightRig lights = scene.light_rig();

@@ -36,39 +36,34 @@ Eigen::Vector3f sample_texture(const cv::Mat& texture, const Eigen::Vector2f& uv
 
 }  // namespace
 
+// Instance ids in the world with props: the background is instance 0, prop
+// k is instance k + 1.
+constexpr unsigned kBackgroundInstance = 0;
+
 struct Scene::EmbreeState {
   RTCDevice device = nullptr;
-  RTCScene background = nullptr;  // background meshes only
-  RTCScene full = nullptr;        // background and props
+  RTCScene background = nullptr;  // background meshes only, attached by mesh index
+  RTCScene full = nullptr;        // instances: the background, and each prop
+  std::vector<RTCScene> prop_scenes;       // one per prop, its mesh in prop space
+  std::vector<RTCGeometry> prop_instances;  // retained, to move props
+  std::vector<int> instance_mesh;           // instance id - 1 -> mesh index
   std::string last_error;
   void check(const char* where) {
     if (!last_error.empty()) throw std::runtime_error(std::string(where) + ": " + last_error);
   }
   ~EmbreeState() {
+    for (RTCGeometry g : prop_instances) rtcReleaseGeometry(g);
+    for (RTCScene s : prop_scenes) rtcReleaseScene(s);
     if (background) rtcReleaseScene(background);
     if (full) rtcReleaseScene(full);
     if (device) rtcReleaseDevice(device);
   }
 };
 
-Scene::Scene() : embree_(std::make_unique<EmbreeState>()) {
-  embree_->device = rtcNewDevice("threads=1");  // our own threads trace; no TBB pool
-  if (!embree_->device) throw std::runtime_error("cannot create Embree device");
-  rtcSetDeviceErrorFunction(embree_->device, embree_error, &embree_->last_error);
-  embree_->background = rtcNewScene(embree_->device);
-  embree_->full = rtcNewScene(embree_->device);
-  rtcSetSceneBuildQuality(embree_->background, RTC_BUILD_QUALITY_HIGH);
-  rtcSetSceneBuildQuality(embree_->full, RTC_BUILD_QUALITY_HIGH);
-}
+namespace {
 
-Scene::~Scene() = default;
-
-int Scene::add_mesh(Mesh mesh, Layer layer) {
-  if (committed_) throw std::logic_error("Scene::add_mesh after commit");
-  mesh.validate();
-  if (mesh.empty()) throw std::invalid_argument("Scene::add_mesh: mesh has no triangles");
-  const auto id = static_cast<unsigned>(meshes_.size());
-  RTCGeometry geometry = rtcNewGeometry(embree_->device, RTC_GEOMETRY_TYPE_TRIANGLE);
+RTCGeometry make_triangle_geometry(RTCDevice device, const Mesh& mesh) {
+  RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
   auto* vertices = static_cast<float*>(rtcSetNewGeometryBuffer(
       geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), mesh.positions.size()));
   for (size_t i = 0; i < mesh.positions.size(); ++i)
@@ -78,18 +73,109 @@ int Scene::add_mesh(Mesh mesh, Layer layer) {
   for (size_t i = 0; i < mesh.triangles.size(); ++i)
     for (int k = 0; k < 3; ++k) indices[3 * i + k] = static_cast<unsigned>(mesh.triangles[i][k]);
   rtcCommitGeometry(geometry);
-  // The same geometry id in both scenes, so a hit maps back to one mesh.
-  if (layer == Layer::Background) rtcAttachGeometryByID(embree_->background, geometry, id);
-  rtcAttachGeometryByID(embree_->full, geometry, id);
+  return geometry;
+}
+
+void set_instance_transform(RTCGeometry instance, const Eigen::Affine3f& xf) {
+  // Embree's 3x4 column-major layout is exactly Eigen's affine matrix minus the last row.
+  const Eigen::Matrix<float, 3, 4> m = xf.matrix().topRows<3>();
+  rtcSetGeometryTransform(instance, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, m.data());
+  rtcCommitGeometry(instance);
+}
+
+}  // namespace
+
+Scene::Scene() : embree_(std::make_unique<EmbreeState>()) {
+  embree_->device = rtcNewDevice("threads=1");  // our own threads trace; no TBB pool
+  if (!embree_->device) throw std::runtime_error("cannot create Embree device");
+  rtcSetDeviceErrorFunction(embree_->device, embree_error, &embree_->last_error);
+  embree_->background = rtcNewScene(embree_->device);
+  embree_->full = rtcNewScene(embree_->device);
+  rtcSetSceneBuildQuality(embree_->background, RTC_BUILD_QUALITY_HIGH);
+  // The top level holds a handful of instances and is rebuilt when a prop moves.
+  rtcSetSceneFlags(embree_->full, RTC_SCENE_FLAG_DYNAMIC);
+  RTCGeometry background_instance = rtcNewGeometry(embree_->device, RTC_GEOMETRY_TYPE_INSTANCE);
+  rtcSetGeometryInstancedScene(background_instance, embree_->background);
+  set_instance_transform(background_instance, Eigen::Affine3f::Identity());
+  rtcAttachGeometryByID(embree_->full, background_instance, kBackgroundInstance);
+  rtcReleaseGeometry(background_instance);
+}
+
+Scene::~Scene() = default;
+
+int Scene::add_mesh(Mesh mesh, Layer layer) {
+  if (layer == Layer::Prop) return add_prop(std::move(mesh), Eigen::Affine3f::Identity());
+  if (committed_) throw std::logic_error("Scene::add_mesh after commit");
+  mesh.validate();
+  if (mesh.empty()) throw std::invalid_argument("Scene::add_mesh: mesh has no triangles");
+  const auto id = static_cast<unsigned>(meshes_.size());
+  RTCGeometry geometry = make_triangle_geometry(embree_->device, mesh);
+  rtcAttachGeometryByID(embree_->background, geometry, id);
   rtcReleaseGeometry(geometry);
-  bounds_.extend(mesh.bounds());
-  if (layer == Layer::Prop) ++prop_count_;
   meshes_.push_back({std::move(mesh), layer});
+  update_bounds();
   embree_->check("Scene::add_mesh");
   return static_cast<int>(id);
 }
 
+int Scene::add_prop(Mesh mesh, const Eigen::Affine3f& world_from_prop) {
+  if (committed_) throw std::logic_error("Scene::add_prop after commit");
+  mesh.validate();
+  if (mesh.empty()) throw std::invalid_argument("Scene::add_prop: mesh has no triangles");
+  if (!world_from_prop.matrix().allFinite()) throw std::invalid_argument("Scene::add_prop: non-finite transform");
+  const auto id = static_cast<int>(meshes_.size());
+  RTCGeometry geometry = make_triangle_geometry(embree_->device, mesh);
+  RTCScene prop_scene = rtcNewScene(embree_->device);
+  rtcSetSceneBuildQuality(prop_scene, RTC_BUILD_QUALITY_HIGH);
+  rtcAttachGeometryByID(prop_scene, geometry, 0);
+  rtcReleaseGeometry(geometry);
+  embree_->prop_scenes.push_back(prop_scene);
+  RTCGeometry instance = rtcNewGeometry(embree_->device, RTC_GEOMETRY_TYPE_INSTANCE);
+  rtcSetGeometryInstancedScene(instance, prop_scene);
+  set_instance_transform(instance, world_from_prop);
+  const auto instance_id = static_cast<unsigned>(embree_->prop_instances.size() + 1);
+  rtcAttachGeometryByID(embree_->full, instance, instance_id);
+  embree_->prop_instances.push_back(instance);  // keeps the reference
+  embree_->instance_mesh.push_back(id);
+  Entry entry{std::move(mesh), Layer::Prop};
+  entry.instance_id = instance_id;
+  meshes_.push_back(std::move(entry));
+  ++prop_count_;
+  meshes_.back().world_from_local = world_from_prop;
+  meshes_.back().normal_matrix = world_from_prop.linear().inverse().transpose();
+  update_bounds();
+  embree_->check("Scene::add_prop");
+  return id;
+}
+
+void Scene::set_prop_transform(int mesh_index, const Eigen::Affine3f& world_from_prop) {
+  if (mesh_index < 0 || mesh_index >= static_cast<int>(meshes_.size()) || meshes_[mesh_index].layer != Layer::Prop)
+    throw std::invalid_argument("Scene::set_prop_transform: not a prop");
+  if (!world_from_prop.matrix().allFinite()) throw std::invalid_argument("Scene::set_prop_transform: non-finite transform");
+  Entry& entry = meshes_[mesh_index];
+  set_instance_transform(embree_->prop_instances[entry.instance_id - 1], world_from_prop);
+  entry.world_from_local = world_from_prop;
+  entry.normal_matrix = world_from_prop.linear().inverse().transpose();
+  update_bounds();
+  if (committed_) rtcCommitScene(embree_->full);  // the top level only
+  embree_->check("Scene::set_prop_transform");
+}
+
+Eigen::AlignedBox3f Scene::world_bounds(int index) const {
+  const Entry& e = meshes_[index];
+  const Eigen::AlignedBox3f local = e.mesh.bounds();
+  Eigen::AlignedBox3f out;
+  for (int c = 0; c < 8; ++c) out.extend(e.world_from_local * local.corner(static_cast<Eigen::AlignedBox3f::CornerType>(c)));
+  return out;
+}
+
+void Scene::update_bounds() {
+  bounds_.setEmpty();
+  for (size_t i = 0; i < meshes_.size(); ++i) bounds_.extend(world_bounds(static_cast<int>(i)));
+}
+
 void Scene::commit() {
+  for (RTCScene s : embree_->prop_scenes) rtcCommitScene(s);
   rtcCommitScene(embree_->background);
   rtcCommitScene(embree_->full);
   embree_->check("Scene::commit");
@@ -113,7 +199,12 @@ bool Scene::intersect(const Eigen::Vector3f& origin, const Eigen::Vector3f& dire
   rtcIntersect1(with_props ? embree_->full : embree_->background, &context, &rh);
   if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
   hit.t = rh.ray.tfar;
-  hit.mesh = static_cast<int>(rh.hit.geomID);
+  // Through the background instance (or in the background scene) the
+  // geometry id is the mesh index; through a prop's instance, look it up.
+  const unsigned instance = rh.hit.instID[0];
+  hit.mesh = with_props && instance != kBackgroundInstance && instance != RTC_INVALID_GEOMETRY_ID
+                 ? embree_->instance_mesh[instance - 1]
+                 : static_cast<int>(rh.hit.geomID);
   hit.triangle = static_cast<int>(rh.hit.primID);
   hit.u = rh.hit.u;
   hit.v = rh.hit.v;
@@ -149,7 +240,10 @@ SurfacePoint Scene::surface(const RayHit& hit, const Eigen::Vector3f& origin,
   SurfacePoint sp;
   sp.layer = entry.layer;
   sp.position = origin + hit.t * direction;
+  // Prop meshes live in prop space: normals go to the world by the normal matrix.
+  const bool instanced = entry.layer == Layer::Prop;
   Eigen::Vector3f ng = (p1 - p0).cross(p2 - p0);
+  if (instanced) ng = entry.normal_matrix * ng;
   const float ng_len = ng.norm();
   ng = ng_len > 0.f ? Eigen::Vector3f(ng / ng_len) : Eigen::Vector3f(-direction);
   sp.front_face = ng.dot(direction) <= 0.f;
@@ -159,6 +253,7 @@ SurfacePoint Scene::surface(const RayHit& hit, const Eigen::Vector3f& origin,
   if (!mesh.normals.empty()) {
     Eigen::Vector3f interpolated =
         w * mesh.normals[tri[0]] + hit.u * mesh.normals[tri[1]] + hit.v * mesh.normals[tri[2]];
+    if (instanced) interpolated = entry.normal_matrix * interpolated;
     const float len = interpolated.norm();
     if (len > 1e-6f) {
       interpolated /= len;

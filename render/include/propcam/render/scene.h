@@ -1,6 +1,10 @@
 // The Embree scene: background geometry (the reconstructed photo, or a
 // synthetic room) and prop geometry, kept so that rays can be traced with or
 // without the props. Differential rendering needs both worlds.
+//
+// Two levels: the background's BVH is built once; the world with props
+// instances it next to one instance per prop. Moving a prop
+// (set_prop_transform) rebuilds only the top level, never the background.
 #pragma once
 
 #include <Eigen/Core>
@@ -41,13 +45,21 @@ class Scene {
   Scene(const Scene&) = delete;
   Scene& operator=(const Scene&) = delete;
 
-  // Adds a mesh (validated) before commit(); returns its index.
+  // Adds a mesh (validated) before commit(); returns its index. A prop added
+  // this way is an instance with the identity transform.
   int add_mesh(Mesh mesh, Layer layer);
+  // Adds a prop given in its own coordinates, placed by `world_from_prop`.
+  int add_prop(Mesh mesh_in_prop_space, const Eigen::Affine3f& world_from_prop);
   // Builds the acceleration structures. Must be called before tracing.
   void commit();
+  // Moves a prop after commit (not while rendering): only the top level is rebuilt.
+  void set_prop_transform(int mesh_index, const Eigen::Affine3f& world_from_prop);
 
   bool has_props() const { return prop_count_ > 0; }
+  // A mesh in its own coordinates (props: prop space) and where it is.
   const Mesh& mesh(int index) const { return meshes_[index].mesh; }
+  const Eigen::Affine3f& world_from_mesh(int index) const { return meshes_[index].world_from_local; }
+  Eigen::AlignedBox3f world_bounds(int index) const;
   Layer layer(int index) const { return meshes_[index].layer; }
   Eigen::AlignedBox3f bounds() const { return bounds_; }
 
@@ -63,7 +75,11 @@ class Scene {
   struct Entry {
     Mesh mesh;
     Layer layer;
+    Eigen::Affine3f world_from_local = Eigen::Affine3f::Identity();
+    Eigen::Matrix3f normal_matrix = Eigen::Matrix3f::Identity();  // inverse transpose of the linear part
+    unsigned instance_id = 0;  // in the world with props (props only)
   };
+  void update_bounds();
   struct EmbreeState;
   std::vector<Entry> meshes_;
   std::unique_ptr<EmbreeState> embree_;
