@@ -18,6 +18,7 @@
 #include "propcam/inference/infer.h"
 #include "propcam/render/depth_of_field.h"
 #include "propcam/render/panorama.h"
+#include "propcam/render/relight.h"
 #include "propcam/render/props.h"
 #include "propcam/render/scene_file.h"
 #include "synthetic_truth.h"
@@ -27,6 +28,9 @@ namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
+
+// Width of the empty-scene light layers that relight the photo (light is smooth).
+constexpr int kSceneLayerWidth = 160;
 
 // Parses "A,B" or "AxB" into two numbers.
 template <typename T>
@@ -112,7 +116,27 @@ struct CompositeArgs {
   uint64_t seed = 0x5eed;
   bool json_out = false, explain = false, no_cull = false;
   double aperture = 0, focus = 0;
+  std::string light_scale;  // "I=S,I=S": relight after rendering
+  bool relight_scene = false;
 };
+
+// "0=2,3=0.5" -> scales per light index (others 1).
+render::LightScales parse_light_scales(const std::string& text, int count) {
+  render::LightScales scales(static_cast<size_t>(std::max(count, 0)), 1.f);
+  std::istringstream in(text);
+  std::string item;
+  while (std::getline(in, item, ',')) {
+    int index = -1;
+    float scale = 1.f;
+    char eq = 0;
+    std::istringstream one(item);
+    if (!(one >> index >> eq >> scale) || eq != '=' || index < 0 || index >= count || !(scale >= 0.f) || !std::isfinite(scale))
+      throw std::invalid_argument("--light-scale expects I=S pairs with 0 <= I < " + std::to_string(count) +
+                                  " and S >= 0, got '" + item + "'");
+    scales[index] = scale;
+  }
+  return scales;
+}
 
 // What the renderer decided to trace and to skip, and why.
 json render_plan_json(const CompositeResult& r) {
@@ -186,9 +210,16 @@ int cmd_composite(const CompositeArgs& a) {
   progress.stage("render: " + std::to_string(a.spp) + " spp, " + std::to_string(a.bounces) + " bounces");
   CompositeOptions options;
   options.cull_tiles = !a.no_cull;
+  options.light_layers = !a.light_scale.empty();
+  options.scene_layers_width = a.relight_scene && !a.light_scale.empty() ? kSceneLayerWidth : 0;
   const CompositeResult result = composite_prop(photo, scene, prop, placement, settings, options);
   const json plan = render_plan_json(result);
   cv::Mat final_image = result.composite_linear;
+  if (!a.light_scale.empty()) {
+    const render::LightScales scales = parse_light_scales(a.light_scale, static_cast<int>(result.layers.change.size()));
+    final_image = a.relight_scene ? render::relight_scene(photo, result.layers, result.scene_layers, scales)
+                                  : render::relight_prop(photo, result.layers, scales);
+  }
   json dof_json = nullptr;
   if (a.aperture > 0) {
     render::DepthOfField dof;
@@ -196,7 +227,7 @@ int cmd_composite(const CompositeArgs& a) {
     // Focus on the prop unless told otherwise.
     dof.focus_distance_m = a.focus > 0 ? a.focus
                                        : scene.camera().world_to_camera(result.placed.base_world.cast<double>()).z();
-    final_image = render::apply_depth_of_field(result.composite_linear, result.depth, scene.fx, dof);
+    final_image = render::apply_depth_of_field(final_image, result.depth, scene.fx, dof);
     dof_json = {{"aperture_m", dof.aperture_m}, {"focus_m", dof.focus_distance_m}};
   }
   capture::write_image(a.out, final_image);
@@ -428,6 +459,10 @@ int run_cli(int argc, char** argv) {
   composite->add_option("-o,--output", comp.out, "Composite image to write (PNG, JPEG or EXR)")->required();
   composite->add_flag("--json", comp.json_out, "Machine-readable summary on stdout");
   composite->add_flag("--explain", comp.explain, "Print what the renderer traced and skipped, and why");
+  composite->add_option("--light-scale", comp.light_scale,
+                        "Relight after rendering: I=S,... scales light I (scene.json order; the last index is "
+                        "emissive surfaces) on the prop and its shadows");
+  composite->add_flag("--relight-scene", comp.relight_scene, "With --light-scale: relight the whole photo too");
   composite->add_option("--aperture", comp.aperture, "Depth of field: lens aperture diameter in metres (0: none)")
       ->check(CLI::Range(0.0, 1.0));
   composite->add_option("--focus", comp.focus, "Depth of field: focus distance in metres (default: the prop)")

@@ -11,6 +11,9 @@
 
 namespace propcam::firmware {
 
+// Samples per pixel of the low-resolution empty-scene layers used to relight the photo.
+constexpr int kSceneLayerSamples = 8;
+
 render::Mesh load_prop(const std::string& name_or_file, const MaterialOverride& override_material) {
   render::Mesh mesh;
   const bool is_file = name_or_file.find('/') != std::string::npos || name_or_file.find('.') != std::string::npos;
@@ -60,6 +63,7 @@ CompositeResult composite_prop(const cv::Mat& photo_linear, const inference::Sce
   const render::LightRig lights = scene.light_rig();
   render::SessionSettings session_settings;
   session_settings.render = settings;
+  session_settings.render.light_layers = options.light_layers || settings.light_layers;
   session_settings.max_samples_per_pixel = settings.samples_per_pixel;
   session_settings.cull_tiles = options.cull_tiles;
   session_settings.target_relative_error = options.target_relative_error;
@@ -73,6 +77,12 @@ CompositeResult composite_prop(const cv::Mat& photo_linear, const inference::Sce
   result.composite_linear = session.composite();
   result.tiles = session.tiles();
   result.reach = session.reach();
+  if (session_settings.render.light_layers) result.layers = session.light_layers();
+  if (options.scene_layers_width > 0) {
+    render::RenderSettings low = settings;
+    low.samples_per_pixel = std::min(settings.samples_per_pixel, kSceneLayerSamples);
+    result.scene_layers = render::render_scene_light_layers(world, camera, lights, options.scene_layers_width, low);
+  }
   // Depth of the composite: the scene's, with the prop's where it is seen.
   result.depth = scene.depth.clone();
   const render::PrimaryBuffers primary = render::render_primary_buffers(world, camera, true);

@@ -27,6 +27,8 @@ double natural_height(const std::string& name_or_file, const render::Mesh& mesh)
 struct CompositeOptions {
   bool cull_tiles = true;               // skip tiles the prop cannot affect
   double target_relative_error = 0.0;   // stop tiles early at this error (0: run to --spp)
+  bool light_layers = false;            // keep the change split by light (relighting)
+  int scene_layers_width = 0;           // > 0: also per-light renders of the empty scene this wide
   // Called after each progressive pass with the session (snapshot, tiles, errors).
   std::function<void(const render::RenderSession&, const render::PassReport&)> on_pass;
 };
@@ -39,6 +41,8 @@ struct CompositeResult {
   std::vector<render::PassReport> passes;
   std::vector<render::TileStatus> tiles;
   render::PropReach reach;
+  render::LightLayers layers;              // with options.light_layers
+  render::SceneLightLayers scene_layers;   // with options.scene_layers_width > 0
   cv::Mat depth;  // CV_32F metres along camera z of what each pixel sees, the prop included (for depth of field)
 };
 

@@ -44,6 +44,9 @@ Eigen::Vector3f offset_origin(const Eigen::Vector3f& p, const Eigen::Vector3f& n
 
 struct PathResult {
   Eigen::Vector3f radiance = Eigen::Vector3f::Zero();
+  // With layers on: the radiance split by the light it came from (rig order,
+  // then one slot for emissive surfaces outside the rig). Sums to `radiance`.
+  std::vector<Eigen::Vector3f> per_light;
   bool touched_prop = false;  // a prop changed this path (hit, or blocked a shadow ray)
   bool prop_primary = false;  // the camera ray hit a prop
   uint64_t rays = 0;
@@ -51,12 +54,26 @@ struct PathResult {
 
 class PathIntegrator {
  public:
-  PathIntegrator(const Scene& scene, const LightRig& lights, int max_bounces)
-      : scene_(scene), lights_(lights), max_bounces_(max_bounces) {}
+  PathIntegrator(const Scene& scene, const LightRig& lights, int max_bounces, bool layers = false)
+      : scene_(scene), lights_(lights), max_bounces_(max_bounces), layers_(layers) {}
+
+  // Rig order of the first sphere light, sun and the environment, and the
+  // slot for emissive surfaces.
+  int sphere_base() const { return static_cast<int>(lights_.area_lights.size()); }
+  int sun_base() const { return sphere_base() + static_cast<int>(lights_.sphere_lights.size()); }
+  int environment_index() const { return sun_base() + static_cast<int>(lights_.suns.size()); }
+  int emissive_slot() const { return lights_.count(); }
 
   PathResult trace(Eigen::Vector3f origin, Eigen::Vector3f direction, Rng& rng, bool with_props) const {
     PathResult result;
+    if (layers_) result.per_light.assign(lights_.count() + 1, Eigen::Vector3f::Zero());
+    // Every contribution enters here, with the light it came from.
     Eigen::Vector3f throughput = Eigen::Vector3f::Ones();
+    const auto add = [&](int light, const Eigen::Vector3f& value) {
+      const Eigen::Vector3f v = throughput.cwiseProduct(value);
+      result.radiance += v;
+      if (layers_) result.per_light[light] += v;
+    };
     // Product of eta^2 over refractions: Russian roulette looks at the
     // throughput without the n^2 radiance scaling that cancels on exit.
     float eta_scale = 1.f;
@@ -68,8 +85,7 @@ class PathIntegrator {
       // Lights met by this ray before the surface: seen directly by the camera,
       // or found by BSDF sampling (MIS-weighted against light sampling).
       bool light_in_front = false;
-      result.radiance += throughput.cwiseProduct(
-          emitted_along(origin, direction, found ? hit.t : kInfinity, bounce == 0, previous_bsdf_pdf, light_in_front));
+      emitted_along(origin, direction, found ? hit.t : kInfinity, bounce == 0, previous_bsdf_pdf, light_in_front, add);
       if (!found) break;
       const SurfacePoint sp = scene_.surface(hit, origin, direction);
       if (sp.layer == Layer::Prop) {
@@ -81,7 +97,7 @@ class PathIntegrator {
         // it directly), unless a light of the rig stands in front of it: then
         // that light stands for it (synthetic rooms' panels) and it is not
         // counted twice.
-        if (!light_in_front) result.radiance += throughput.cwiseProduct(sp.material->emission);
+        if (!light_in_front) add(emissive_slot(), sp.material->emission);
         break;
       }
       if (bounce >= max_bounces_) break;
@@ -89,7 +105,7 @@ class PathIntegrator {
       const Frame frame(sp.shading_normal);
       const Eigen::Vector3f wo = frame.to_local(-direction);
       const Bsdf bsdf(*sp.material, sp.albedo, sp.front_face);
-      result.radiance += throughput.cwiseProduct(direct_light(sp, frame, wo, bsdf, rng, with_props, result));
+      direct_light(sp, frame, wo, bsdf, rng, with_props, result, add);
 
       BsdfSample bs;
       const float u0 = rng.uniform(), u1 = rng.uniform(), u2 = rng.uniform();
@@ -111,8 +127,13 @@ class PathIntegrator {
       direction = wi;
     }
     const float lum = 0.2126f * result.radiance.x() + 0.7152f * result.radiance.y() + 0.0722f * result.radiance.z();
-    if (!result.radiance.allFinite()) result.radiance.setZero();
-    else if (lum > kMaxSampleLuminance) result.radiance *= kMaxSampleLuminance / lum;
+    float scale = 1.f;
+    if (!result.radiance.allFinite()) scale = 0.f;
+    else if (lum > kMaxSampleLuminance) scale = kMaxSampleLuminance / lum;
+    if (scale != 1.f) {
+      result.radiance *= scale;
+      for (auto& l : result.per_light) l = scale == 0.f || !l.allFinite() ? Eigen::Vector3f::Zero() : Eigen::Vector3f(l * scale);
+    }
     return result;
   }
 
@@ -134,38 +155,45 @@ class PathIntegrator {
   // (area and sphere lights; suns and the environment when it escapes).
   // `camera`: the ray is the camera's, weight 1; otherwise it was sampled from
   // a BSDF with density bsdf_pdf, weighted by the power heuristic.
-  Eigen::Vector3f emitted_along(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction, float t_hit,
-                                bool camera, float bsdf_pdf, bool& light_in_front) const {
+  template <typename Add>
+  void emitted_along(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction, float t_hit, bool camera,
+                     float bsdf_pdf, bool& light_in_front, const Add& add) const {
     const auto weight = [&](float light_pdf) { return camera ? 1.f : detail::power_heuristic(bsdf_pdf, light_pdf); };
-    Eigen::Vector3f sum = Eigen::Vector3f::Zero();
     float t = 0.f, light_pdf = 0.f;
+    int index = 0;
     // The same visibility rule as the shadow rays: blocked only by a surface
     // nearer than the shortened distance.
     const auto in_front = [&](float t_light) { return t_light * (1.f - kShadowShortening) < t_hit; };
-    for (const AreaLight& light : lights_.area_lights)
+    for (const AreaLight& light : lights_.area_lights) {
       if (light.intersect(origin, direction, t, light_pdf) && in_front(t)) {
-        sum += light.radiance * weight(light_pdf);
+        add(index, light.radiance * weight(light_pdf));
         light_in_front = true;
       }
-    for (const SphereLight& light : lights_.sphere_lights)
+      ++index;
+    }
+    for (const SphereLight& light : lights_.sphere_lights) {
       if (light.intersect(origin, direction, t, light_pdf) && in_front(t)) {
-        sum += light.radiance * weight(light_pdf);
+        add(index, light.radiance * weight(light_pdf));
         light_in_front = true;
       }
-    if (t_hit < kInfinity) return sum;
+      ++index;
+    }
+    if (t_hit < kInfinity) return;
     for (const SunLight& sun : lights_.suns) {
       const float p = sun.pdf(direction);
-      if (p > 0.f) sum += sun.radiance() * weight(p);
+      if (p > 0.f) add(index, sun.radiance() * weight(p));
+      ++index;
     }
-    if (lights_.environment) sum += lights_.environment->radiance(direction) * weight(lights_.environment->pdf(direction));
-    return sum;
+    if (lights_.environment)
+      add(index, lights_.environment->radiance(direction) * weight(lights_.environment->pdf(direction)));
   }
 
   // Next-event estimation: one sample toward every light, MIS-weighted
   // against the BSDF's density for the same direction. Dielectrics also
   // receive light through the surface (wi.z < 0).
-  Eigen::Vector3f direct_light(const SurfacePoint& sp, const Frame& frame, const Eigen::Vector3f& wo,
-                               const Bsdf& bsdf, Rng& rng, bool with_props, PathResult& result) const {
+  template <typename Add>
+  void direct_light(const SurfacePoint& sp, const Frame& frame, const Eigen::Vector3f& wo, const Bsdf& bsdf, Rng& rng,
+                    bool with_props, PathResult& result, const Add& add) const {
     const auto connect = [&](const LightSample& ls) -> Eigen::Vector3f {
       if (!(ls.pdf > 0.f) || !std::isfinite(ls.pdf)) return Eigen::Vector3f::Zero();
       const float cos_geometric = ls.direction.dot(sp.geometric_normal);
@@ -181,20 +209,20 @@ class PathIntegrator {
       const float weight = detail::power_heuristic(ls.pdf, bsdf.pdf(wo, wi));
       return f.cwiseProduct(ls.radiance) * (std::abs(wi.z()) * weight / ls.pdf);
     };
-    Eigen::Vector3f sum = Eigen::Vector3f::Zero();
     // Two numbers per light whether it emits or not: the streams of the
     // with-prop and without-prop paths stay aligned.
+    int index = 0;
     for (const AreaLight& light : lights_.area_lights) {
       const float u1 = rng.uniform(), u2 = rng.uniform();
-      sum += connect(light.sample(sp.position, u1, u2));
+      add(index++, connect(light.sample(sp.position, u1, u2)));
     }
     for (const SphereLight& light : lights_.sphere_lights) {
       const float u1 = rng.uniform(), u2 = rng.uniform();
-      sum += connect(light.sample(sp.position, u1, u2));
+      add(index++, connect(light.sample(sp.position, u1, u2)));
     }
     for (const SunLight& sun : lights_.suns) {
       const float u1 = rng.uniform(), u2 = rng.uniform();
-      sum += connect(sun.sample(u1, u2));
+      add(index++, connect(sun.sample(u1, u2)));
     }
     if (lights_.environment) {
       const float u1 = rng.uniform(), u2 = rng.uniform();
@@ -202,14 +230,14 @@ class PathIntegrator {
       ls.direction = lights_.environment->sample(u1, u2, ls.pdf);
       ls.distance = kInfinity;
       ls.radiance = lights_.environment->radiance(ls.direction);
-      sum += connect(ls);
+      add(index, connect(ls));
     }
-    return sum;
   }
 
   const Scene& scene_;
   const LightRig& lights_;
   int max_bounces_;
+  bool layers_;
 };
 
 // Runs `render_tile(x0, y0, x1, y1)` over the image in tiles on worker threads.
@@ -263,8 +291,10 @@ uint64_t pixel_stream(const PinholeCamera& camera, int x, int y) {
 
 }  // namespace
 
-cv::Mat render_image(const Scene& scene, const PinholeCamera& camera, const LightRig& lights,
-                     const RenderSettings& settings, RenderStats* stats) {
+namespace {
+
+cv::Mat render_world(const Scene& scene, const PinholeCamera& camera, const LightRig& lights,
+                     const RenderSettings& settings, RenderStats* stats, bool with_props) {
   check_inputs(scene, camera, settings);
   const auto start = std::chrono::steady_clock::now();
   cv::Mat image(camera.height, camera.width, CV_32FC3, cv::Scalar::all(0));
@@ -278,7 +308,7 @@ cv::Mat render_image(const Scene& scene, const PinholeCamera& camera, const Ligh
         Eigen::Vector3f sum = Eigen::Vector3f::Zero();
         for (int s = 0; s < settings.samples_per_pixel; ++s) {
           const CameraRay ray = jittered_camera_ray(camera, x, y, rng);
-          const PathResult path = integrator.trace(ray.origin, ray.direction, rng, true);
+          const PathResult path = integrator.trace(ray.origin, ray.direction, rng, with_props);
           sum += path.radiance;
           tile_rays += path.rays;
         }
@@ -293,6 +323,18 @@ cv::Mat render_image(const Scene& scene, const PinholeCamera& camera, const Ligh
     stats->rays = rays;
   }
   return image;
+}
+
+}  // namespace
+
+cv::Mat render_image(const Scene& scene, const PinholeCamera& camera, const LightRig& lights,
+                     const RenderSettings& settings, RenderStats* stats) {
+  return render_world(scene, camera, lights, settings, stats, true);
+}
+
+cv::Mat render_background_image(const Scene& scene, const PinholeCamera& camera, const LightRig& lights,
+                                const RenderSettings& settings, RenderStats* stats) {
+  return render_world(scene, camera, lights, settings, stats, false);
 }
 
 PrimaryBuffers render_primary_buffers(const Scene& scene, const PinholeCamera& camera, bool with_props) {
@@ -331,16 +373,23 @@ void differential_sample(const PathIntegrator& integrator, const PinholeCamera& 
   pixel.rays += with_prop.rays;
   ++pixel.samples;
   Eigen::Vector3f delta = Eigen::Vector3f::Zero();
+  const bool layers = !with_prop.per_light.empty();
+  if (layers && pixel.change_sum_per_light.size() != with_prop.per_light.size())
+    pixel.change_sum_per_light.assign(with_prop.per_light.size(), Eigen::Vector3f::Zero());
   if (with_prop.prop_primary) {
     ++pixel.prop_samples;
     delta = with_prop.radiance;
+    for (size_t i = 0; layers && i < with_prop.per_light.size(); ++i) pixel.change_sum_per_light[i] += with_prop.per_light[i];
   } else if (with_prop.touched_prop) {
     const PathResult without = integrator.trace(ray.origin, ray.direction, rng_without, false);
     pixel.rays += without.rays;
     ++pixel.second_paths;
     delta = with_prop.radiance - without.radiance;
     const float gain = 0.2126f * delta.x() + 0.7152f * delta.y() + 0.0722f * delta.z();
-    if (gain > kMaxBackgroundGainLuminance) delta *= kMaxBackgroundGainLuminance / gain;
+    const float scale = gain > kMaxBackgroundGainLuminance ? kMaxBackgroundGainLuminance / gain : 1.f;
+    delta *= scale;
+    for (size_t i = 0; layers && i < with_prop.per_light.size(); ++i)
+      pixel.change_sum_per_light[i] += (with_prop.per_light[i] - without.per_light[i]) * scale;
   } else {
     ++pixel.untouched;
     return;
@@ -355,7 +404,7 @@ void differential_sample(const PathIntegrator& integrator, const PinholeCamera& 
 void accumulate_differential_pixel(const Scene& scene, const PinholeCamera& camera, const LightRig& lights,
                                    const RenderSettings& settings, int x, int y, int first_sample, int count,
                                    DifferentialPixel& pixel) {
-  const PathIntegrator integrator(scene, lights, settings.max_bounces);
+  const PathIntegrator integrator(scene, lights, settings.max_bounces, settings.light_layers);
   for (int s = first_sample; s < first_sample + count; ++s)
     differential_sample(integrator, camera, settings.seed, x, y, s, pixel);
 }

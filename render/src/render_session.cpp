@@ -151,6 +151,25 @@ DifferentialRender RenderSession::differential() const {
   return out;
 }
 
+LightLayers RenderSession::light_layers() const {
+  LightLayers out;
+  out.coverage = differential().coverage;
+  if (!settings_.render.light_layers) return out;
+  const size_t n = static_cast<size_t>(lights_.count()) + 1;  // rig lights, then emissive surfaces
+  for (size_t i = 0; i < n; ++i) out.change.emplace_back(camera_.height, camera_.width, CV_32FC3, cv::Scalar::all(0));
+  for (int y = 0; y < camera_.height; ++y)
+    for (int x = 0; x < camera_.width; ++x) {
+      const DifferentialPixel& p = pixels_[static_cast<size_t>(y) * camera_.width + x];
+      if (p.samples == 0) continue;
+      const float inv = 1.f / static_cast<float>(p.samples);
+      for (size_t i = 0; i < n && i < p.change_sum_per_light.size(); ++i) {
+        const Eigen::Vector3f& c = p.change_sum_per_light[i];
+        out.change[i].at<cv::Vec3f>(y, x) = cv::Vec3f(c.x(), c.y(), c.z()) * inv;
+      }
+    }
+  return out;
+}
+
 cv::Mat RenderSession::composite() const { return composite_differential(photo_, differential()); }
 
 cv::Mat RenderSession::tile_error_map() const {

@@ -110,6 +110,20 @@ TEST(Cli, CompositeReusesASceneFolderAndAcceptsAMeshFile) {
   EXPECT_EQ(r.exit_code, 0) << r.out;
 }
 
+TEST(Cli, CompositeRelightsExplainsAndBlursOnRequest) {
+  const std::string out = temp("relit.png");
+  CliRun r = propcam("composite " + fixture_photo() + " --prop vase --at 80,95 --spp 2 --light-scale 0=2 --relight-scene"
+                     " --aperture 0.02 --explain --json -o " + out);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const json summary = json_tail(r.out);
+  EXPECT_TRUE(summary["plan"].contains("tiles_culled"));
+  EXPECT_GT(summary["depth_of_field"]["focus_m"].get<double>(), 0.0);
+  EXPECT_TRUE(fs::exists(out));
+  r = propcam("composite " + fixture_photo() + " --prop vase --at 80,95 --spp 1 --light-scale 99=2 -o " + temp("r2.png"));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.out.find("--light-scale expects"), std::string::npos) << r.out;
+}
+
 TEST(Cli, BadInputIsAClearErrorNotACrash) {
   CliRun r = propcam("composite " + fixture_photo() + " --prop vase --at banana -o " + temp("x.png"));
   EXPECT_EQ(r.exit_code, 2);

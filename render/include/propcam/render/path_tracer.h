@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <vector>
 #include <opencv2/core.hpp>
 
 #include "propcam/render/camera.h"
@@ -21,6 +22,9 @@ struct RenderSettings {
   uint64_t seed = 0x5eed;   // the same seed gives the same image
   int threads = 0;          // 0: all hardware threads
   int tile_size = 32;
+  // Keep the prop's change split by light (rig order, then emissive surfaces)
+  // so light intensities can be changed after rendering (relight.h).
+  bool light_layers = false;
   // Called from worker threads with the finished fraction in [0,1].
   std::function<void(double)> progress;
 };
@@ -45,6 +49,10 @@ struct PrimaryBuffers {
 cv::Mat render_image(const Scene& scene, const PinholeCamera& camera, const LightRig& lights,
                      const RenderSettings& settings, RenderStats* stats = nullptr);
 
+// The same without the props (the empty scene).
+cv::Mat render_background_image(const Scene& scene, const PinholeCamera& camera, const LightRig& lights,
+                                const RenderSettings& settings, RenderStats* stats = nullptr);
+
 PrimaryBuffers render_primary_buffers(const Scene& scene, const PinholeCamera& camera, bool with_props);
 
 // The prop's effect on the photo, from one set of shared samples.
@@ -62,6 +70,7 @@ DifferentialRender render_differential(const Scene& scene, const PinholeCamera& 
 // (seed, pixel, s), so any split into passes gives bit-identical sums.
 struct DifferentialPixel {
   Eigen::Vector3f change_sum = Eigen::Vector3f::Zero();  // sum of per-sample changes
+  std::vector<Eigen::Vector3f> change_sum_per_light;     // with light layers: the same, split by light
   double change_luminance_sq_sum = 0.0;                  // for the standard error
   int prop_samples = 0;                                  // samples whose camera ray saw a prop
   int samples = 0;

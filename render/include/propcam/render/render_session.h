@@ -10,6 +10,7 @@
 
 #include "propcam/render/path_tracer.h"
 #include "propcam/render/prop_reach.h"
+#include "propcam/render/relight.h"
 
 namespace propcam::render {
 
@@ -62,6 +63,8 @@ class RenderSession {
 
   cv::Mat composite() const;            // CV_32FC3 linear, the photo's size
   DifferentialRender differential() const;
+  // The change split by light (needs settings.render.light_layers); empty otherwise.
+  LightLayers light_layers() const;
   cv::Mat tile_error_map() const;       // CV_32F, each pixel its tile's relative error (0 where culled)
   const std::vector<TileStatus>& tiles() const { return tiles_; }
   const PropReach& reach() const { return reach_; }
