@@ -137,6 +137,7 @@ json run_bench(const BenchOptions& options) {
   ref_settings.seed = 999;
   CompositeOptions simulate_everything;
   simulate_everything.cull_tiles = false;
+  simulate_everything.plan.allow_skips = false;
   const CompositeResult reference =
       composite_prop(shot.photo_linear, truth, prop, placement, ref_settings, simulate_everything);
   cv::Mat affected;
@@ -169,20 +170,37 @@ json run_bench(const BenchOptions& options) {
     s.samples_per_pixel = options.skip_spp;
     progress.stage("bench: render skips at " + std::to_string(options.skip_spp) + " spp");
     const CompositeResult full = composite_prop(shot.photo_linear, truth, prop, placement, s, simulate_everything);
-    const CompositeResult culled = composite_prop(shot.photo_linear, truth, prop, placement, s);
     const double noise = rmse_in_mask(full.composite_linear, reference.composite_linear, everywhere);
-    const double with_skip = rmse_in_mask(culled.composite_linear, reference.composite_linear, everywhere);
-    int culled_tiles = 0;
-    for (const auto& t : culled.tiles) culled_tiles += !t.affected;
-    result["skips"] = json::array({{{"skip", "tiles the prop cannot reach"},
-                                    {"spp", options.skip_spp},
-                                    {"seconds_full", full.render.stats.seconds},
-                                    {"seconds_with_skip", culled.render.stats.seconds},
-                                    {"tiles_skipped", culled_tiles},
-                                    {"tiles", culled.tiles.size()},
-                                    {"rmse_full", noise},
-                                    {"rmse_with_skip", with_skip},
-                                    {"error_added", with_skip - noise}}});
+    json skips = json::array();
+    auto measure = [&](const std::string& name, const CompositeOptions& o, const render::RenderSettings& rs) {
+      const CompositeResult r = composite_prop(shot.photo_linear, truth, prop, placement, rs, o);
+      const double err = rmse_in_mask(r.composite_linear, reference.composite_linear, everywhere);
+      int culled = 0;
+      for (const auto& t : r.tiles) culled += !t.affected;
+      json decisions = json::array();
+      for (const auto& d : r.plan.decisions)
+        if (!d.simulated) decisions.push_back(d.effect + ": " + d.why);
+      skips.push_back({{"skip", name}, {"spp", options.skip_spp}, {"seconds_full", full.render.stats.seconds},
+                       {"seconds_with_skip", r.render.stats.seconds}, {"tiles_skipped", culled},
+                       {"tiles", r.tiles.size()}, {"rmse_full", noise}, {"rmse_with_skip", err},
+                       {"error_added", err - noise}, {"skipped", decisions}});
+    };
+    CompositeOptions only_cull = simulate_everything;
+    only_cull.cull_tiles = true;
+    measure("tiles the prop cannot reach", only_cull, s);
+    render::RenderSettings no_caustics = s;
+    no_caustics.caustics = false;
+    measure("caustics", simulate_everything, no_caustics);
+    render::RenderSettings no_bounce = s;
+    no_bounce.prop_interreflection = false;
+    measure("prop interreflection", simulate_everything, no_bounce);
+    CompositeOptions prune = simulate_everything;
+    prune.plan.allow_skips = true;
+    prune.plan.skip_caustics = false;
+    prune.plan.skip_interreflection = false;
+    measure("weak lights pruned", prune, s);
+    measure("the plan (all it decides)", CompositeOptions{}, s);
+    result["skips"] = skips;
   }
   result["render_reference"] = {{"spp", options.reference_spp}, {"seconds", reference.render.stats.seconds},
                                 {"affected_pixels", cv::countNonZero(affected)}};

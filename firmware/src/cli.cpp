@@ -149,12 +149,16 @@ json render_plan_json(const CompositeResult& r) {
       culled_pixels += t.rect.area();
     }
   }
-  json shadows = json::array(), significant = json::array();
+  json shadows = json::array(), significant = json::array(), light_index = json::array();
   for (size_t i = 0; i < r.reach.pixels_in_shadow.size(); ++i) {
+    light_index.push_back(i < r.plan.source_index.size() ? r.plan.source_index[i] : static_cast<int>(i));
     shadows.push_back(r.reach.pixels_in_shadow[i]);
     significant.push_back(static_cast<bool>(r.reach.light_significant[i]));
   }
-  return {{"tiles", r.tiles.size()},
+  json decisions = json::array();
+  for (const auto& d : r.plan.decisions) decisions.push_back({{"effect", d.effect}, {"simulated", d.simulated}, {"why", d.why}});
+  return {{"transport", decisions},
+          {"tiles", r.tiles.size()},
           {"tiles_culled", culled},
           {"culled_pixel_share", pixels ? static_cast<double>(culled_pixels) / pixels : 0.0},
           {"passes", r.passes.size()},
@@ -162,10 +166,14 @@ json render_plan_json(const CompositeResult& r) {
                      {"pixels_near_prop", r.reach.pixels_near},
                      {"pixels_in_shadow_per_area_light", shadows},
                      {"area_light_significant", significant},
+                     {"area_light_index", light_index},
                      {"seconds", r.reach.seconds}}}};
 }
 
 void print_render_plan(const json& plan) {
+  for (const auto& d : plan["transport"])
+    std::fprintf(stderr, "plan: %-20s %-9s %s\n", d["effect"].get<std::string>().c_str(),
+                 d["simulated"].get<bool>() ? "simulate" : "skip", d["why"].get<std::string>().c_str());
   std::fprintf(stderr, "plan: %d of %d tiles traced; %d culled (%.0f%% of the pixels: the prop cannot reach them)\n",
                plan["tiles"].get<int>() - plan["tiles_culled"].get<int>(), plan["tiles"].get<int>(),
                plan["tiles_culled"].get<int>(), 100.0 * plan["culled_pixel_share"].get<double>());
@@ -173,7 +181,7 @@ void print_render_plan(const json& plan) {
   std::fprintf(stderr, "  reach (%.3fs, tested every 2nd pixel): %d see the prop, %d near enough for its occlusion/bounce light\n",
                reach["seconds"].get<double>(), reach["pixels_seeing_prop"].get<int>(), reach["pixels_near_prop"].get<int>());
   for (size_t i = 0; i < reach["pixels_in_shadow_per_area_light"].size(); ++i)
-    std::fprintf(stderr, "  area light %zu: %s, %d in its shadow cone\n", i,
+    std::fprintf(stderr, "  light %d (area): %s, %d in its shadow cone\n", reach["area_light_index"][i].get<int>(),
                  reach["area_light_significant"][i].get<bool>() ? "casts shadows" : "too weak at the prop: no shadow traced",
                  reach["pixels_in_shadow_per_area_light"][i].get<int>());
 }
@@ -210,6 +218,7 @@ int cmd_composite(const CompositeArgs& a) {
   progress.stage("render: " + std::to_string(a.spp) + " spp, " + std::to_string(a.bounces) + " bounces");
   CompositeOptions options;
   options.cull_tiles = !a.no_cull;
+  options.plan.allow_skips = !a.no_cull;
   options.light_layers = !a.light_scale.empty();
   options.scene_layers_width = a.relight_scene && !a.light_scale.empty() ? kSceneLayerWidth : 0;
   const CompositeResult result = composite_prop(photo, scene, prop, placement, settings, options);
@@ -467,7 +476,7 @@ int run_cli(int argc, char** argv) {
       ->check(CLI::Range(0.0, 1.0));
   composite->add_option("--focus", comp.focus, "Depth of field: focus distance in metres (default: the prop)")
       ->check(CLI::PositiveNumber);
-  composite->add_flag("--no-cull", comp.no_cull, "Trace every tile (to measure what culling saves)");
+  composite->add_flag("--no-cull", comp.no_cull, "Simulate everything: every tile, light and path (to measure what the plan saves)");
 
   bool props_json = false;
   auto* props = app.add_subcommand("props", "List the preset props");

@@ -61,13 +61,14 @@ CompositeResult composite_prop(const cv::Mat& photo_linear, const inference::Sce
   result.scene_build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
   const render::LightRig lights = scene.light_rig();
+  result.plan = render::plan_transport(world, lights, settings, options.plan);
   render::SessionSettings session_settings;
-  session_settings.render = settings;
+  session_settings.render = result.plan.settings;
   session_settings.render.light_layers = options.light_layers || settings.light_layers;
   session_settings.max_samples_per_pixel = settings.samples_per_pixel;
   session_settings.cull_tiles = options.cull_tiles;
   session_settings.target_relative_error = options.target_relative_error;
-  render::RenderSession session(world, camera, lights, photo_linear, prop_bounds, session_settings);
+  render::RenderSession session(world, camera, result.plan.lights, photo_linear, prop_bounds, session_settings);
   while (!session.finished()) {
     result.passes.push_back(session.run_pass());
     if (settings.progress) settings.progress(static_cast<double>(result.passes.back().max_samples) / settings.samples_per_pixel);
@@ -77,7 +78,8 @@ CompositeResult composite_prop(const cv::Mat& photo_linear, const inference::Sce
   result.composite_linear = session.composite();
   result.tiles = session.tiles();
   result.reach = session.reach();
-  if (session_settings.render.light_layers) result.layers = session.light_layers();
+  if (session_settings.render.light_layers)
+    result.layers = render::layers_in_original_order(result.plan, session.light_layers());
   if (options.scene_layers_width > 0) {
     render::RenderSettings low = settings;
     low.samples_per_pixel = std::min(settings.samples_per_pixel, kSceneLayerSamples);

@@ -11,6 +11,7 @@
 #include "propcam/render/path_tracer.h"
 #include "propcam/render/placement.h"
 #include "propcam/render/render_session.h"
+#include "propcam/render/transport_plan.h"
 
 namespace propcam::firmware {
 
@@ -26,6 +27,7 @@ double natural_height(const std::string& name_or_file, const render::Mesh& mesh)
 
 struct CompositeOptions {
   bool cull_tiles = true;               // skip tiles the prop cannot affect
+  render::PlanOptions plan;             // which transport to skip (plan.allow_skips = false: simulate everything)
   double target_relative_error = 0.0;   // stop tiles early at this error (0: run to --spp)
   bool light_layers = false;            // keep the change split by light (relighting)
   int scene_layers_width = 0;           // > 0: also per-light renders of the empty scene this wide
@@ -41,6 +43,7 @@ struct CompositeResult {
   std::vector<render::PassReport> passes;
   std::vector<render::TileStatus> tiles;
   render::PropReach reach;
+  render::TransportPlan plan;
   render::LightLayers layers;              // with options.light_layers
   render::SceneLightLayers scene_layers;   // with options.scene_layers_width > 0
   cv::Mat depth;  // CV_32F metres along camera z of what each pixel sees, the prop included (for depth of field)

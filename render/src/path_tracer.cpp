@@ -42,6 +42,13 @@ Eigen::Vector3f offset_origin(const Eigen::Vector3f& p, const Eigen::Vector3f& n
   return p + normal * (kRayOffsetAbsolute + kRayOffsetRelative * p.cwiseAbs().maxCoeff());
 }
 
+// Surfaces whose reflection is sharp enough to focus light (caustics).
+constexpr float kCausticMaxRoughness = 0.3f;
+
+bool is_specular(const Material& m) {
+  return (m.type == Material::Type::Metal || m.type == Material::Type::Dielectric) && m.roughness < kCausticMaxRoughness;
+}
+
 struct PathResult {
   Eigen::Vector3f radiance = Eigen::Vector3f::Zero();
   // With layers on: the radiance split by the light it came from (rig order,
@@ -54,8 +61,14 @@ struct PathResult {
 
 class PathIntegrator {
  public:
-  PathIntegrator(const Scene& scene, const LightRig& lights, int max_bounces, bool layers = false)
-      : scene_(scene), lights_(lights), max_bounces_(max_bounces), layers_(layers) {}
+  PathIntegrator(const Scene& scene, const LightRig& lights, int max_bounces, bool layers = false,
+                 bool caustics = true, bool prop_interreflection = true)
+      : scene_(scene),
+        lights_(lights),
+        max_bounces_(max_bounces),
+        layers_(layers),
+        caustics_(caustics),
+        prop_interreflection_(prop_interreflection) {}
 
   // Rig order of the first sphere light, sun and the environment, and the
   // slot for emissive surfaces.
@@ -74,6 +87,7 @@ class PathIntegrator {
       result.radiance += v;
       if (layers_) result.per_light[light] += v;
     };
+    bool after_background = false;  // the path has left a background surface
     // Product of eta^2 over refractions: Russian roulette looks at the
     // throughput without the n^2 radiance scaling that cancels on exit.
     float eta_scale = 1.f;
@@ -91,6 +105,11 @@ class PathIntegrator {
       if (sp.layer == Layer::Prop) {
         result.touched_prop = true;
         if (bounce == 0) result.prop_primary = true;
+        // Light the prop sends onto the photo's surfaces, when the plan skips it:
+        // the path ends here (the prop still blocks, so shadows stay).
+        if (after_background && (!prop_interreflection_ || (!caustics_ && is_specular(*sp.material)))) break;
+      } else {
+        after_background = true;
       }
       if (sp.material->type == Material::Type::Emissive) {
         // An emissive surface is found by BSDF sampling only (nothing samples
@@ -238,6 +257,8 @@ class PathIntegrator {
   const LightRig& lights_;
   int max_bounces_;
   bool layers_;
+  bool caustics_;
+  bool prop_interreflection_;
 };
 
 // Runs `render_tile(x0, y0, x1, y1)` over the image in tiles on worker threads.
@@ -404,7 +425,8 @@ void differential_sample(const PathIntegrator& integrator, const PinholeCamera& 
 void accumulate_differential_pixel(const Scene& scene, const PinholeCamera& camera, const LightRig& lights,
                                    const RenderSettings& settings, int x, int y, int first_sample, int count,
                                    DifferentialPixel& pixel) {
-  const PathIntegrator integrator(scene, lights, settings.max_bounces, settings.light_layers);
+  const PathIntegrator integrator(scene, lights, settings.max_bounces, settings.light_layers, settings.caustics,
+                                  settings.prop_interreflection);
   for (int s = first_sample; s < first_sample + count; ++s)
     differential_sample(integrator, camera, settings.seed, x, y, s, pixel);
 }
@@ -416,7 +438,8 @@ DifferentialRender render_differential(const Scene& scene, const PinholeCamera& 
   DifferentialRender out;
   out.coverage = cv::Mat(camera.height, camera.width, CV_32F, cv::Scalar(0));
   out.change = cv::Mat(camera.height, camera.width, CV_32FC3, cv::Scalar::all(0));
-  const PathIntegrator integrator(scene, lights, settings.max_bounces);
+  const PathIntegrator integrator(scene, lights, settings.max_bounces, settings.light_layers, settings.caustics,
+                                  settings.prop_interreflection);
   std::atomic<uint64_t> rays{0}, second_paths{0}, untouched{0};
   for_each_tile(camera.width, camera.height, settings, [&](int x0, int y0, int x1, int y1) {
     uint64_t tile_rays = 0, tile_second = 0, tile_untouched = 0;

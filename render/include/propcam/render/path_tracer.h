@@ -25,6 +25,11 @@ struct RenderSettings {
   // Keep the prop's change split by light (rig order, then emissive surfaces)
   // so light intensities can be changed after rendering (relight.h).
   bool light_layers = false;
+  // Transport the renderer may skip (see transport_plan.h): light that
+  // reaches the photo's surfaces via a specular prop (caustics), or via any
+  // prop (its bounce light). Shadows are traced either way.
+  bool caustics = true;
+  bool prop_interreflection = true;
   // Called from worker threads with the finished fraction in [0,1].
   std::function<void(double)> progress;
 };

@@ -56,6 +56,7 @@ class Scene {
   void set_prop_transform(int mesh_index, const Eigen::Affine3f& world_from_prop);
 
   bool has_props() const { return prop_count_ > 0; }
+  int mesh_count() const { return static_cast<int>(meshes_.size()); }
   // A mesh in its own coordinates (props: prop space) and where it is.
   const Mesh& mesh(int index) const { return meshes_[index].mesh; }
   const Eigen::Affine3f& world_from_mesh(int index) const { return meshes_[index].world_from_local; }
