@@ -43,6 +43,44 @@ float angle_between(const Vector3f& a, const Vector3f& b) {
   return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.f, 1.f));
 }
 
+// The environment's brightest direction and the share of its light (solid
+// angle weighted) within `cone` radians of it.
+struct EnvironmentPeak {
+  Vector3f direction = Vector3f::UnitY();
+  double share = 0.0;
+};
+
+EnvironmentPeak environment_peak(const EnvironmentLight& env, double cone) {
+  EnvironmentPeak peak;
+  const cv::Mat& img = env.image();
+  if (img.empty()) return peak;
+  double total = 0.0, best = -1.0;
+  std::vector<std::pair<Vector3f, double>> texels;
+  texels.reserve(img.total());
+  for (int y = 0; y < img.rows; ++y) {
+    const float v = (y + 0.5f) / img.rows;
+    const double solid = std::sin(v * kPi);
+    for (int x = 0; x < img.cols; ++x) {
+      const cv::Vec3f c = img.at<cv::Vec3f>(y, x);
+      const double power = std::max(0.f, luminance(Vector3f(c[0], c[1], c[2]))) * solid;
+      const Vector3f d = EnvironmentLight::uv_to_direction((x + 0.5f) / img.cols, v);
+      texels.push_back({d, power});
+      total += power;
+      if (power > best) {
+        best = power;
+        peak.direction = d;
+      }
+    }
+  }
+  if (!(total > 0)) return peak;
+  const float cos_cone = static_cast<float>(std::cos(cone));
+  double inside = 0.0;
+  for (const auto& [d, power] : texels)
+    if (d.dot(peak.direction) >= cos_cone) inside += power;
+  peak.share = inside / total;
+  return peak;
+}
+
 }  // namespace
 
 PropReach estimate_prop_reach(const Scene& scene, const PinholeCamera& camera, const LightRig& lights,
@@ -79,6 +117,12 @@ PropReach estimate_prop_reach(const Scene& scene, const PinholeCamera& camera, c
   const float effective_radius = std::sqrt(mean_projected_area / kPi);
   const float reach_distance =
       effective_radius / std::sqrt(static_cast<float>(std::max(options.min_hemisphere_share, 1e-9)));
+  EnvironmentPeak sun;
+  const double sun_cone = options.environment_peak_cone_deg * kPi / 180.0;
+  if (lights.environment) {
+    sun = environment_peak(*lights.environment, sun_cone);
+    reach.environment_has_sun = sun.share >= options.environment_peak_share;
+  }
   const Vector3f origin = camera.center_world.cast<float>();
   const int step = std::max(1, options.pixel_step);
   for (int y0 = 0; y0 < camera.height; y0 += step)
@@ -106,6 +150,28 @@ PropReach estimate_prop_reach(const Scene& scene, const PinholeCamera& camera, c
             ++reach.pixels_near;
           } else {
             const float prop_angle = angular_radius(radius, prop_distance);
+            for (const SphereLight& l : lights.sphere_lights) {
+              if (affected || !l.emits()) break;
+              const Vector3f to_light = l.center - p;
+              const float light_distance = to_light.norm();
+              if (light_distance > prop_distance - radius &&
+                  angle_between(to_prop, to_light) < prop_angle + angular_radius(l.radius, light_distance)) {
+                affected = true;
+                ++reach.pixels_in_sphere_or_sun_shadow;
+              }
+            }
+            for (const SunLight& s : lights.suns) {
+              if (affected || !s.emits()) break;
+              if (angle_between(to_prop, s.direction) < prop_angle + static_cast<float>(s.angular_radius)) {
+                affected = true;
+                ++reach.pixels_in_sphere_or_sun_shadow;
+              }
+            }
+            if (!affected && reach.environment_has_sun &&
+                angle_between(to_prop, sun.direction) < prop_angle + static_cast<float>(sun_cone)) {
+              affected = true;
+              ++reach.pixels_in_environment_sun_shadow;
+            }
             for (int i = 0; i < n_area && !affected; ++i) {
               if (!reach.light_significant[i]) continue;
               const AreaLight& l = lights.area_lights[i];

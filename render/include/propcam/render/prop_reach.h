@@ -23,6 +23,11 @@ struct ReachOptions {
   // share of the strongest light's cast no shadow worth tracing.
   double min_light_share = 0.01;
   int pixel_step = 2;  // the test runs on every n-th pixel (tiles are larger)
+  // An environment whose brightest cone of this half-angle holds at least
+  // `environment_peak_share` of its light has a sun in it: it casts a shadow
+  // like a sun light does.
+  double environment_peak_cone_deg = 5.0;
+  double environment_peak_share = 0.2;
 };
 
 struct PropReach {
@@ -31,6 +36,9 @@ struct PropReach {
   std::vector<int> pixels_in_shadow;  // per area light (same order as the rig)
   int pixels_near = 0;              // within reach of occlusion and bounce light
   std::vector<bool> light_significant;
+  bool environment_has_sun = false;  // directional shadows from a peak in the environment
+  int pixels_in_environment_sun_shadow = 0;
+  int pixels_in_sphere_or_sun_shadow = 0;  // sphere lights and suns (all treated as casting shadows)
   double seconds = 0.0;
 };
 
