@@ -11,6 +11,7 @@
 
 #include "compositor.h"
 #include "progress.h"
+#include "propcam/inference/albedo.h"
 #include "propcam/inference/infer.h"
 #include "synthetic_truth.h"
 
@@ -100,7 +101,21 @@ json run_bench(const BenchOptions& options) {
     } else if (r.stage == "geometry") {
       stages.push_back(stage_entry(r, "depth_abs_rel", depth_abs_rel(est.depth, truth.depth)));
     } else if (r.stage == "albedo") {
-      stages.push_back(stage_entry(r, "albedo_si_rel_rmse", scale_invariant_rel_rmse(est.albedo, truth.albedo)));
+      stages.push_back(stage_entry(r, "albedo_lmse", inference::local_mse(est.albedo, truth.albedo)));
+      stages.back()["albedo_si_rel_rmse"] = scale_invariant_rel_rmse(est.albedo, truth.albedo);
+      // Each albedo method on the same photo: what accuracy costs.
+      json methods = json::array();
+      for (const auto method : {inference::AlbedoOptions::Method::BlurredShading, inference::AlbedoOptions::Method::Retinex}) {
+        inference::AlbedoOptions o;
+        o.method = method;
+        inference::StageReport method_report;
+        const cv::Mat a = inference::estimate_albedo(shot.photo_linear, o, method_report);
+        methods.push_back({{"method", method_report.why},
+                           {"albedo_lmse", inference::local_mse(a, truth.albedo)},
+                           {"albedo_si_rel_rmse", scale_invariant_rel_rmse(a, truth.albedo)},
+                           {"seconds", method_report.seconds}});
+      }
+      stages.back()["methods"] = methods;
     } else if (r.stage == "light_intensities") {
       stages.push_back(stage_entry(r, "rerender_rel_rms", r.error));
     } else {

@@ -130,30 +130,6 @@ Vector3d unit_luminance_colour(const Vector3d& rgb) {
 
 }  // namespace
 
-cv::Mat estimate_albedo(const cv::Mat& photo_linear, const AlbedoOptions& options, StageReport& report) {
-  const auto start = Clock::now();
-  const cv::Mat lum = luminance(photo_linear);
-  const double sigma = std::max(1.0, options.shading_sigma_fraction * std::hypot(lum.cols, lum.rows));
-  cv::Mat shading;
-  cv::GaussianBlur(lum, shading, cv::Size(0, 0), sigma, sigma, cv::BORDER_REFLECT);
-  shading = cv::max(shading, kMinShading);
-  cv::Mat albedo(photo_linear.size(), CV_32FC3);
-  for (int y = 0; y < albedo.rows; ++y)
-    for (int x = 0; x < albedo.cols; ++x) {
-      const cv::Vec3f c = photo_linear.at<cv::Vec3f>(y, x);
-      const float s = shading.at<float>(y, x);
-      cv::Vec3f a;
-      for (int k = 0; k < 3; ++k)
-        a[k] = static_cast<float>(std::clamp(options.mean_albedo * c[k] / s, 0.0, kMaxAlbedo));
-      albedo.at<cv::Vec3f>(y, x) = a;
-    }
-  report.stage = "albedo";
-  report.usable = true;
-  report.why = "photo divided by blurred luminance (first cut; Retinex in a later issue)";
-  report.seconds = seconds_since(start);
-  return albedo;
-}
-
 cv::Mat environment_from_photo(const cv::Mat& photo_linear, const render::PinholeCamera& camera, int width) {
   width = std::max(8, width);
   const int height = width / 2;
@@ -396,6 +372,30 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   Eigen::VectorXd b;
   normal_equations(3, A, b);
   NnlsResult chosen = solve_nnls_l1(A, b, lower, upper, options.sparsity, options.max_fit_iterations, options.fit_tolerance);
+  // Outdoors there is one sun: of the sun hypotheses the fit used, keep the
+  // one that alone (with the other lights) explains the photo best.
+  const int suns_begin = static_cast<int>(visible_sources), suns_end = k - 1;
+  int suns_used = 0;
+  for (int i = suns_begin; i < suns_end; ++i) suns_used += chosen.weights[i] > 0;
+  if (!indoor && suns_used > 1) {
+    double best_cost = std::numeric_limits<double>::infinity();
+    NnlsResult best;
+    for (int sun = suns_begin; sun < suns_end; ++sun) {
+      if (!(chosen.weights[sun] > 0)) continue;
+      std::vector<double> bound = upper;
+      for (int i = suns_begin; i < suns_end; ++i)
+        if (i != sun) bound[i] = 0.0;
+      NnlsResult one = solve_nnls_l1(A, b, lower, bound, options.sparsity, options.max_fit_iterations, options.fit_tolerance);
+      // |Rw - y|^2 up to the constant |y|^2.
+      const double cost = one.weights.dot(A * one.weights) - 2.0 * one.weights.dot(b);
+      if (cost < best_cost) {
+        best_cost = cost;
+        best = std::move(one);
+      }
+    }
+    best.iterations += chosen.iterations;
+    chosen = std::move(best);
+  }
   std::vector<bool> active(k);
   for (int i = 0; i < k; ++i) active[i] = chosen.weights[i] > 0;
   int max_iterations_used = chosen.iterations;

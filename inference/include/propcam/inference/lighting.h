@@ -8,18 +8,12 @@
 #include <opencv2/core.hpp>
 #include <vector>
 
+#include "propcam/inference/albedo.h"
 #include "propcam/inference/scene_model.h"
 #include "propcam/inference/sky.h"
 #include "propcam/render/camera.h"
 
 namespace propcam::inference {
-
-struct AlbedoOptions {
-  double shading_sigma_fraction = 0.04;  // of the image diagonal
-  double mean_albedo = 0.5;              // reflectance assigned to average shading
-};
-
-cv::Mat estimate_albedo(const cv::Mat& photo_linear, const AlbedoOptions& options, StageReport& report);
 
 struct LightingOptions {
   int max_area_lights = 4;

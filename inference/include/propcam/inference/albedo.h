@@ -1,0 +1,41 @@
+// Diffuse albedo by Color Retinex (Grosse et al. 2009, after Land and
+// McCann): an image derivative belongs to reflectance when the chromaticity
+// changes across it or when it is a large step in intensity; every other
+// derivative is shading. The reflectance derivatives are integrated by a DCT
+// Poisson solve (poisson.h), so it runs in milliseconds on the device.
+#pragma once
+
+#include <opencv2/core.hpp>
+
+#include "propcam/inference/scene_model.h"
+
+namespace propcam::inference {
+
+struct AlbedoOptions {
+  // Retinex, or the first cut: the photo divided by its Gaussian-blurred
+  // luminance (sigma 4% of the diagonal). Retinex has the lower error on the
+  // generator's rooms (`propcam bench`), but its albedo is globally scaled, and
+  // where the light fit then under-renders a region (the lawn of building.jpg)
+  // the prop's shadow there fades; the blur normalises locally. The default
+  // stays the blur until the light fit accounts for that (issue 5).
+  enum class Method { Retinex, BlurredShading };
+  Method method = Method::BlurredShading;
+  double blur_sigma_fraction = 0.04;
+  // Thresholds on per-pixel derivatives, chosen on the generator's rooms
+  // (`propcam bench`, albedo LMSE): chromaticity change (|delta rgb/sum|) and
+  // log-intensity step that mark a reflectance edge.
+  double chromaticity_threshold = 0.02;
+  double log_intensity_threshold = 0.35;
+  double mean_albedo = 0.5;  // reflectance assigned to the image's average (albedo is known up to scale)
+  int max_solve_width = 1024;  // wider photos are solved at this width and upsampled
+};
+
+// `photo_linear` CV_32FC3; returns CV_32FC3 albedo in [0, 0.95].
+cv::Mat estimate_albedo(const cv::Mat& photo_linear, const AlbedoOptions& options, StageReport& report);
+
+// Grosse et al.'s local mean squared error: over 20-px windows (step 10),
+// each estimate window scaled to fit the truth best, summed and normalised
+// by the truth's energy. 0 is perfect; 1 is as bad as predicting zero.
+double local_mse(const cv::Mat& estimate, const cv::Mat& truth, int window = 20);
+
+}  // namespace propcam::inference
