@@ -36,38 +36,50 @@ double natural_height(const std::string& name_or_file, const render::Mesh& mesh)
   return mesh.bounds().sizes().y();
 }
 
-CompositeResult composite_prop(const cv::Mat& photo_linear, const inference::SceneModel& scene,
-                               const render::Mesh& prop, const render::PropPlacement& placement,
-                               const render::RenderSettings& settings, const CompositeOptions& options) {
-  if (photo_linear.cols != scene.width || photo_linear.rows != scene.height)
-    throw std::invalid_argument("the scene model was inferred from a photo of another size (" +
-                                std::to_string(scene.width) + "x" + std::to_string(scene.height) + ")");
+CompositeWorld build_composite_world(const inference::SceneModel& scene, const render::Mesh& prop,
+                                     const render::PropPlacement& placement) {
   const auto start = std::chrono::steady_clock::now();
-  const render::PinholeCamera camera = scene.camera();
-  render::Scene world;
-  world.add_mesh(render::mesh_from_depth(scene.depth, scene.albedo, camera), render::Layer::Background);
+  CompositeWorld w;
+  w.camera = scene.camera();
+  w.scene = std::make_unique<render::Scene>();
+  render::Scene& world = *w.scene;
+  world.add_mesh(render::mesh_from_depth(scene.depth, scene.albedo, w.camera), render::Layer::Background);
 
   // Placement needs the background alone; a small separate scene is cheaper
   // than rebuilding, and keeps `world` unchanged until the prop is known.
   render::Scene support;
   support.add_mesh(world.mesh(0), render::Layer::Background);
   support.commit();
-  CompositeResult result;
-  result.placed = render::place_prop(prop, camera, support, placement);
+  w.placed = render::place_prop(prop, w.camera, support, placement);
   render::Mesh placed_mesh = prop;
-  placed_mesh.transform(result.placed.world_from_prop);
-  const Eigen::AlignedBox3f prop_bounds = placed_mesh.bounds();
+  placed_mesh.transform(w.placed.world_from_prop);
+  w.prop_bounds = placed_mesh.bounds();
   world.add_mesh(std::move(placed_mesh), render::Layer::Prop);
   world.commit();
-  result.scene_build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  w.build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  w.lights = scene.light_rig();
+  return w;
+}
 
-  const render::LightRig lights = scene.light_rig();
+CompositeResult composite_prop(const cv::Mat& photo_linear, const inference::SceneModel& scene,
+                               const render::Mesh& prop, const render::PropPlacement& placement,
+                               const render::RenderSettings& settings, const CompositeOptions& options) {
+  if (photo_linear.cols != scene.width || photo_linear.rows != scene.height)
+    throw std::invalid_argument("the scene model was inferred from a photo of another size (" +
+                                std::to_string(scene.width) + "x" + std::to_string(scene.height) + ")");
+  const CompositeWorld w = build_composite_world(scene, prop, placement);
+  const render::Scene& world = *w.scene;
+  const render::PinholeCamera& camera = w.camera;
+  CompositeResult result;
+  result.placed = w.placed;
+  result.scene_build_seconds = w.build_seconds;
+
   render::SessionSettings session_settings;
   session_settings.render = settings;
   session_settings.max_samples_per_pixel = settings.samples_per_pixel;
   session_settings.cull_tiles = options.cull_tiles;
   session_settings.target_relative_error = options.target_relative_error;
-  render::RenderSession session(world, camera, lights, photo_linear, prop_bounds, session_settings);
+  render::RenderSession session(world, camera, w.lights, photo_linear, w.prop_bounds, session_settings);
   while (!session.finished()) {
     result.passes.push_back(session.run_pass());
     if (settings.progress) settings.progress(static_cast<double>(result.passes.back().max_samples) / settings.samples_per_pixel);
