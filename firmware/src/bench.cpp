@@ -9,6 +9,7 @@
 #include <sstream>
 #include <thread>
 
+#include "bench_common.h"
 #include "compositor.h"
 #include "progress.h"
 #include "propcam/inference/albedo.h"
@@ -48,19 +49,6 @@ double scale_invariant_rel_rmse(const cv::Mat& est, const cv::Mat& truth) {
   const double alpha = norm2 > 0 ? dot / norm2 : 0.0;
   cv::Mat diff = est * alpha - truth;
   return std::sqrt(diff.dot(diff) / std::max(truth.dot(truth), 1e-12));
-}
-
-double rmse_in_mask(const cv::Mat& a, const cv::Mat& b, const cv::Mat& mask) {
-  double sum = 0;
-  int n = 0;
-  for (int y = 0; y < a.rows; ++y)
-    for (int x = 0; x < a.cols; ++x) {
-      if (!mask.at<uint8_t>(y, x)) continue;
-      const cv::Vec3f d = a.at<cv::Vec3f>(y, x) - b.at<cv::Vec3f>(y, x);
-      sum += d.dot(d) / 3.0;
-      ++n;
-    }
-  return n ? std::sqrt(sum / n) : 0.0;
 }
 
 json stage_entry(const inference::StageReport& r, const char* error_name, double error) {
@@ -155,14 +143,7 @@ json run_bench(const BenchOptions& options) {
   simulate_everything.plan.allow_skips = false;
   const CompositeResult reference =
       composite_prop(shot.photo_linear, truth, prop, placement, ref_settings, simulate_everything);
-  cv::Mat affected;
-  {
-    cv::Mat diff;
-    cv::absdiff(reference.composite_linear, shot.photo_linear, diff);
-    cv::Mat grey;
-    cv::transform(diff, grey, cv::Matx13f(1.f, 1.f, 1.f));
-    affected = grey > 1e-3;
-  }
+  const cv::Mat affected = changed_pixels(reference.composite_linear, shot.photo_linear);
   json spp_sweep = json::array();
   for (int spp = 1; spp <= options.max_spp; spp *= 2) {
     progress.stage("bench: render " + std::to_string(spp) + " spp");
@@ -266,8 +247,6 @@ std::string format_bench(const json& r) {
 }
 
 void plot_bench(const json& r, const std::string& dir) {
-  if (std::system("command -v gnuplot >/dev/null 2>&1") != 0)
-    throw std::runtime_error("gnuplot is not installed (scripts/setup.sh installs gnuplot-nox)");
   fs::create_directories(dir);
   const fs::path d(dir);
   {
@@ -280,7 +259,7 @@ void plot_bench(const json& r, const std::string& dir) {
     for (const auto& s : r["sweeps"]["camera_ransac"])
       cam << s["ransac_iterations"] << " " << s["seconds"] << " " << s["focal_rel_error"] << " " << s["up_error_deg"] << "\n";
   }
-  std::ofstream gp(d / "plots.gp");
+  std::ostringstream gp;
   gp << "set terminal png size 800,560\n"
         "set grid\nset logscale xy\n"
         "set output '" << (d / "render_spp.png").string() << "'\n"
@@ -294,10 +273,7 @@ void plot_bench(const json& r, const std::string& dir) {
         "set xlabel 'camera stage seconds'\nset ylabel 'relative focal error'\n"
         "plot '" << (d / "camera_ransac.dat").string() << "' using 2:3 with linespoints pt 7 title 'focal', "
         "'' using 2:3:1 with labels offset 1,1 notitle\n";
-  gp.close();
-  // gnuplot's warnings (e.g. a flat range on tiny benches) go to a log, not the user's terminal.
-  const std::string cmd = "gnuplot '" + (d / "plots.gp").string() + "' 2>'" + (d / "gnuplot.log").string() + "'";
-  if (std::system(cmd.c_str()) != 0) throw std::runtime_error("gnuplot failed on " + (d / "plots.gp").string());
+  run_gnuplot(dir, "plots.gp", gp.str());
 }
 
 }  // namespace propcam::firmware

@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "bench.h"
+#include "bench_render.h"
 #include "compositor.h"
 #include "progress.h"
 #include "propcam/capture/image_file.h"
@@ -515,6 +516,22 @@ int run_cli(int argc, char** argv) {
   bench->add_option("--plot", bench_options.plot_dir, "Write PNG plots (gnuplot) to this folder");
   bench->add_flag("--json", bench_json, "Machine-readable output");
 
+  RenderBenchOptions render_bench_options;
+  bool render_bench_json = false;
+  std::string render_bench_sizes = "640x480,1024x768";
+  auto* bench_render = bench->add_subcommand(
+      "render", "Renderer speed per size: rays/s vs a raw Embree loop, first snapshot, time to 1% error");
+  bench_render->add_option("--sizes", render_bench_sizes, "Comma-separated WxH list");
+  bench_render->add_option("--seed", render_bench_options.seed, "Synthetic room seed");
+  bench_render->add_option("--prop", render_bench_options.prop, "Preset prop (see `propcam props`)");
+  bench_render->add_option("--reference-spp", render_bench_options.reference_spp,
+                           "Samples per pixel of the reference render (two independent halves)");
+  bench_render->add_option("--max-spp", render_bench_options.max_spp,
+                           "The measured session stops here if it never reaches 1%");
+  bench_render->add_option("--threads", render_bench_options.threads, "Render threads (0: all hardware threads)");
+  bench_render->add_option("--plot", render_bench_options.plot_dir, "Write one PNG per size (gnuplot) to this folder");
+  bench_render->add_flag("--json", render_bench_json, "Machine-readable output");
+
   ViewArgs view_args;
   auto* view = app.add_subcommand("view", "Cut a rectilinear photo with a known camera out of an HDR panorama");
   view->add_option("panorama", view_args.panorama, "Equirectangular panorama (EXR, HDR, PNG, ...)")
@@ -540,6 +557,15 @@ int run_cli(int argc, char** argv) {
     if (*synth) return cmd_synth(synth_args);
     if (*view) return cmd_view(view_args);
     if (*render_cmd) return cmd_render(render_args);
+    if (*bench_render) {
+      render_bench_options.sizes = parse_sizes(render_bench_sizes);
+      render_bench_options.quiet = render_bench_json;
+      const json result = run_render_bench(render_bench_options);
+      if (!render_bench_options.plot_dir.empty()) plot_render_bench(result, render_bench_options.plot_dir);
+      if (render_bench_json) std::cout << result.dump(2) << std::endl;
+      else std::cout << format_render_bench(result);
+      return 0;
+    }
     if (*bench) {
       if (!parse_pair(bench_size, bench_options.width, bench_options.height, 'x') || bench_options.width < 32 ||
           bench_options.height < 32)

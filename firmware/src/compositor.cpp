@@ -39,28 +39,40 @@ double natural_height(const std::string& name_or_file, const render::Mesh& mesh)
   return mesh.bounds().sizes().y();
 }
 
+CompositeWorld build_composite_world(const inference::SceneModel& scene, const render::Mesh& prop,
+                                     const render::PropPlacement& placement) {
+  const auto start = std::chrono::steady_clock::now();
+  CompositeWorld w;
+  w.camera = scene.camera();
+  w.scene = std::make_unique<render::Scene>();
+  render::Scene& world = *w.scene;
+  world.add_mesh(render::mesh_from_depth(scene.depth, scene.albedo, w.camera), render::Layer::Background);
+
+  // The prop is an instance: the background's BVH is built once, placement
+  // looks at the background alone, and then the prop is moved into place.
+  w.prop_index = world.add_prop(prop, Eigen::Affine3f::Identity());
+  world.commit();
+  w.placed = render::place_prop(prop, w.camera, world, placement);
+  world.set_prop_transform(w.prop_index, w.placed.world_from_prop);
+  w.prop_bounds = world.world_bounds(w.prop_index);
+  w.build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  w.lights = scene.light_rig();
+  return w;
+}
+
 CompositeResult composite_prop(const cv::Mat& photo_linear, const inference::SceneModel& scene,
                                const render::Mesh& prop, const render::PropPlacement& placement,
                                const render::RenderSettings& settings, const CompositeOptions& options) {
   if (photo_linear.cols != scene.width || photo_linear.rows != scene.height)
     throw std::invalid_argument("the scene model was inferred from a photo of another size (" +
                                 std::to_string(scene.width) + "x" + std::to_string(scene.height) + ")");
-  const auto start = std::chrono::steady_clock::now();
-  const render::PinholeCamera camera = scene.camera();
-  render::Scene world;
-  world.add_mesh(render::mesh_from_depth(scene.depth, scene.albedo, camera), render::Layer::Background);
-
-  // The prop is an instance: the background's BVH is built once, placement
-  // looks at the background alone, and then the prop is moved into place.
-  const int prop_index = world.add_prop(prop, Eigen::Affine3f::Identity());
-  world.commit();
+  const CompositeWorld w = build_composite_world(scene, prop, placement);
+  const render::Scene& world = *w.scene;
+  const render::PinholeCamera& camera = w.camera;
+  const render::LightRig& lights = w.lights;
   CompositeResult result;
-  result.placed = render::place_prop(prop, camera, world, placement);
-  world.set_prop_transform(prop_index, result.placed.world_from_prop);
-  const Eigen::AlignedBox3f prop_bounds = world.world_bounds(prop_index);
-  result.scene_build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-
-  const render::LightRig lights = scene.light_rig();
+  result.placed = w.placed;
+  result.scene_build_seconds = w.build_seconds;
   result.plan = render::plan_transport(world, lights, settings, options.plan);
   render::SessionSettings session_settings;
   session_settings.render = result.plan.settings;
@@ -68,7 +80,7 @@ CompositeResult composite_prop(const cv::Mat& photo_linear, const inference::Sce
   session_settings.max_samples_per_pixel = settings.samples_per_pixel;
   session_settings.cull_tiles = options.cull_tiles;
   session_settings.target_relative_error = options.target_relative_error;
-  render::RenderSession session(world, camera, result.plan.lights, photo_linear, prop_bounds, session_settings);
+  render::RenderSession session(world, camera, result.plan.lights, photo_linear, w.prop_bounds, session_settings);
   while (!session.finished()) {
     result.passes.push_back(session.run_pass());
     if (settings.progress) settings.progress(static_cast<double>(result.passes.back().max_samples) / settings.samples_per_pixel);

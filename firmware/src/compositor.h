@@ -3,6 +3,7 @@
 #pragma once
 
 #include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 
@@ -24,6 +25,23 @@ struct MaterialOverride {
 render::Mesh load_prop(const std::string& name_or_file, const MaterialOverride& override_material = {});
 // Natural height of a preset, or of a loaded mesh's bounding box.
 double natural_height(const std::string& name_or_file, const render::Mesh& mesh);
+
+// The world a composite is rendered in: the photo's depth mesh as background
+// and the placed prop, committed; with the camera and lights of the scene model.
+// Keep it in place while a RenderSession refers to its members.
+struct CompositeWorld {
+  std::unique_ptr<render::Scene> scene;
+  render::PinholeCamera camera;
+  render::LightRig lights;
+  render::PlacedProp placed;
+  int prop_index = -1;  // the prop's instance in `scene` (set_prop_transform moves it)
+  Eigen::AlignedBox3f prop_bounds;
+  double build_seconds = 0.0;  // depth mesh, placement and acceleration structures
+};
+
+// Throws std::invalid_argument as place_prop does (pixel outside, no support).
+CompositeWorld build_composite_world(const inference::SceneModel& scene, const render::Mesh& prop,
+                                     const render::PropPlacement& placement);
 
 struct CompositeOptions {
   bool cull_tiles = true;               // skip tiles the prop cannot affect

@@ -125,10 +125,35 @@ PropReach estimate_prop_reach(const Scene& scene, const PinholeCamera& camera, c
   }
   const Vector3f origin = camera.center_world.cast<float>();
   const int step = std::max(1, options.pixel_step);
+  // The sampled rays below are up to 1.5 pixels apart, so a prop projecting
+  // to less than that (far away, at the horizon) can slip between them.
+  // Every camera ray through a box in front of the camera passes within the
+  // rectangle around its projected corners: the pixels whose jittered rays
+  // can meet the box (half a pixel around it) count as seeing it.
+  cv::Rect seen_rect;
+  {
+    double u0 = std::numeric_limits<double>::infinity(), v0 = u0, u1 = -u0, v1 = -u0;
+    bool in_front = true;
+    for (int c = 0; c < 8 && in_front; ++c) {
+      Eigen::Vector2d px = Eigen::Vector2d::Zero();
+      in_front = camera.project(prop_bounds.corner(static_cast<Eigen::AlignedBox3f::CornerType>(c)).cast<double>(), px);
+      if (!in_front) break;
+      u0 = std::min(u0, px.x()), u1 = std::max(u1, px.x()), v0 = std::min(v0, px.y()), v1 = std::max(v1, px.y());
+    }
+    if (in_front) {
+      const auto clamp_to = [](double value, int size) {
+        return static_cast<int>(std::clamp(value, -1.0, static_cast<double>(size)));
+      };
+      const int x_lo = clamp_to(std::floor(u0 - 0.5), camera.width), x_hi = clamp_to(std::ceil(u1 + 0.5), camera.width);
+      const int y_lo = clamp_to(std::floor(v0 - 0.5), camera.height), y_hi = clamp_to(std::ceil(v1 + 0.5), camera.height);
+      seen_rect = cv::Rect(x_lo, y_lo, x_hi - x_lo + 1, y_hi - y_lo + 1) & cv::Rect(0, 0, camera.width, camera.height);
+    }
+  }
   for (int y0 = 0; y0 < camera.height; y0 += step)
     for (int x0 = 0; x0 < camera.width; x0 += step) {
       const int y = std::min(y0 + step / 2, camera.height - 1), x = std::min(x0 + step / 2, camera.width - 1);
-      bool affected = false;
+      bool affected =
+          (seen_rect & cv::Rect(x0, y0, std::min(step, camera.width - x0), std::min(step, camera.height - y0))).area() > 0;
       // Seen through the prop's bounds (prop visible, or hiding what is behind):
       // tested at the block's corners too, so thin props are not missed.
       for (int corner = 0; corner < 5 && !affected; ++corner) {

@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -161,6 +162,30 @@ TEST(Cli, BenchReportsStagesAndPlots) {
   EXPECT_FALSE(b["sweeps"]["camera_ransac"].empty());
   EXPECT_GT(fs::file_size(plots + "/render_spp.png"), 1000u);
   EXPECT_GT(fs::file_size(plots + "/camera_ransac.png"), 1000u);
+}
+
+TEST(Cli, BenchRenderReportsSpeedAndErrorPerSize) {
+  const std::string plots = temp("render_plots");
+  const CliRun r = propcam("bench render --sizes 96x72 --reference-spp 64 --max-spp 16 --json --plot " + plots);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const json b = json_tail(r.out);
+  ASSERT_EQ(b["sizes"].size(), 1u);
+  const json& s = b["sizes"][0];
+  EXPECT_EQ(s["width"], 96);
+  EXPECT_EQ(s["height"], 72);
+  const auto finite_positive = [](const json& v) {
+    return v.is_number() && std::isfinite(v.get<double>()) && v.get<double>() > 0;
+  };
+  for (const char* k : {"rays_per_s", "embree_raw_rays_per_s", "efficiency", "scene_build_s", "first_snapshot_s"})
+    EXPECT_TRUE(finite_positive(s[k])) << k << " = " << s[k];
+  // Null when 1% is not reached within --max-spp.
+  ASSERT_TRUE(s.contains("time_to_1pct_s"));
+  EXPECT_TRUE(s["time_to_1pct_s"].is_null() || finite_positive(s["time_to_1pct_s"])) << s["time_to_1pct_s"];
+  ASSERT_FALSE(s["curve"].empty());
+  for (const auto& p : s["curve"])
+    for (const char* k : {"spp", "seconds", "rmse_rel"}) EXPECT_TRUE(finite_positive(p[k])) << k << " = " << p[k];
+  EXPECT_GT(fs::file_size(plots + "/render_96x72.png"), 1000u);
+  EXPECT_EQ(propcam("bench render --sizes 96by72").exit_code, 2);
 }
 
 // The example scene (render/examples/cornell) copied to a temporary folder

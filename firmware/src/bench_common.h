@@ -1,0 +1,22 @@
+// Helpers shared by `propcam bench` and `propcam bench render`: image errors
+// over a region, and gnuplot.
+#pragma once
+
+#include <opencv2/core.hpp>
+#include <string>
+
+namespace propcam::firmware {
+
+// A pixel counts as changed when its channels' absolute differences sum to more than this (linear).
+constexpr double kChangedPixelThreshold = 1e-3;
+
+// RMS over the pixels of `mask` (CV_8U) and over the three channels of a - b (CV_32FC3); 0 for an empty mask.
+double rmse_in_mask(const cv::Mat& a, const cv::Mat& b, const cv::Mat& mask);
+// CV_8U, 255 where a and b (CV_32FC3) differ by more than `threshold` (sum over channels).
+cv::Mat changed_pixels(const cv::Mat& a, const cv::Mat& b, double threshold = kChangedPixelThreshold);
+
+// Writes `script` to DIR/SCRIPT_NAME and runs gnuplot on it (its warnings go
+// to DIR/gnuplot.log); creates DIR. Throws when gnuplot is missing or fails.
+void run_gnuplot(const std::string& dir, const std::string& script_name, const std::string& script);
+
+}  // namespace propcam::firmware
