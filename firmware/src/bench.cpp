@@ -59,6 +59,63 @@ json stage_entry(const inference::StageReport& r, const char* error_name, double
 
 }  // namespace
 
+json measure_render_skips(const cv::Mat& photo, const inference::SceneModel& truth, const render::Mesh& prop,
+                          const render::PropPlacement& placement, const cv::Mat& reference, int spp) {
+  CompositeOptions simulate_everything;
+  simulate_everything.cull_tiles = false;
+  simulate_everything.plan.allow_skips = false;
+  const cv::Mat everywhere(photo.size(), CV_8U, cv::Scalar(255));
+  render::RenderSettings s;
+  s.samples_per_pixel = spp;
+  const CompositeResult full = composite_prop(photo, truth, prop, placement, s, simulate_everything);
+  const double noise = rmse_in_mask(full.composite_linear, reference, everywhere);
+  json skips = json::array();
+  auto measure = [&](const std::string& name, const CompositeOptions& o, const render::RenderSettings& rs) {
+    const CompositeResult r = composite_prop(photo, truth, prop, placement, rs, o);
+    const double err = rmse_in_mask(r.composite_linear, reference, everywhere);
+    int culled = 0;
+    for (const auto& t : r.tiles) culled += !t.affected;
+    json decisions = json::array();
+    for (const auto& d : r.plan.decisions)
+      if (!d.simulated) decisions.push_back(d.effect + ": " + d.why);
+    skips.push_back({{"skip", name}, {"spp", spp}, {"seconds_full", full.render.stats.seconds},
+                     {"seconds_with_skip", r.render.stats.seconds}, {"tiles_skipped", culled},
+                     {"tiles", r.tiles.size()}, {"rmse_full", noise}, {"rmse_with_skip", err},
+                     {"error_added", err - noise}, {"skipped", decisions}});
+  };
+  CompositeOptions only_cull = simulate_everything;
+  only_cull.cull_tiles = true;
+  measure("tiles the prop cannot reach", only_cull, s);
+  render::RenderSettings no_caustics = s;
+  no_caustics.caustics = false;
+  measure("caustics", simulate_everything, no_caustics);
+  render::RenderSettings no_bounce = s;
+  no_bounce.prop_interreflection = false;
+  measure("prop interreflection", simulate_everything, no_bounce);
+  CompositeOptions prune = simulate_everything;
+  prune.plan.allow_skips = true;
+  prune.plan.skip_caustics = false;
+  prune.plan.skip_interreflection = false;
+  measure("weak lights pruned", prune, s);
+  measure("the plan (all it decides)", CompositeOptions{}, s);
+  return skips;
+}
+
+std::string format_render_skips(const json& skips) {
+  std::ostringstream out;
+  char line[256];
+  out << "\nRender skips at equal samples (RMSE over the whole image vs the reference)\n"
+         "  skip                          spp  s_full  s_skip  tiles_skipped  rmse_full  rmse_skip\n";
+  for (const auto& s : skips) {
+    std::snprintf(line, sizeof line, "  %-28s %4d  %6.3f  %6.3f  %6d/%-6d  %9.5f  %9.5f\n",
+                  s["skip"].get<std::string>().c_str(), s["spp"].get<int>(), s["seconds_full"].get<double>(),
+                  s["seconds_with_skip"].get<double>(), s["tiles_skipped"].get<int>(), s["tiles"].get<int>(),
+                  s["rmse_full"].get<double>(), s["rmse_with_skip"].get<double>());
+    out << line;
+  }
+  return out.str();
+}
+
 json run_bench(const BenchOptions& options) {
   Progress progress(options.quiet);
   json result;
@@ -158,46 +215,9 @@ json run_bench(const BenchOptions& options) {
   }
   result["sweeps"]["render_spp"] = spp_sweep;
 
-  // Each skip against simulating everything, at the same samples: time
-  // saved, and error (whole image, vs the reference) added beyond the noise.
-  {
-    const cv::Mat everywhere(shot.photo_linear.size(), CV_8U, cv::Scalar(255));
-    render::RenderSettings s;
-    s.samples_per_pixel = options.skip_spp;
-    progress.stage("bench: render skips at " + std::to_string(options.skip_spp) + " spp");
-    const CompositeResult full = composite_prop(shot.photo_linear, truth, prop, placement, s, simulate_everything);
-    const double noise = rmse_in_mask(full.composite_linear, reference.composite_linear, everywhere);
-    json skips = json::array();
-    auto measure = [&](const std::string& name, const CompositeOptions& o, const render::RenderSettings& rs) {
-      const CompositeResult r = composite_prop(shot.photo_linear, truth, prop, placement, rs, o);
-      const double err = rmse_in_mask(r.composite_linear, reference.composite_linear, everywhere);
-      int culled = 0;
-      for (const auto& t : r.tiles) culled += !t.affected;
-      json decisions = json::array();
-      for (const auto& d : r.plan.decisions)
-        if (!d.simulated) decisions.push_back(d.effect + ": " + d.why);
-      skips.push_back({{"skip", name}, {"spp", options.skip_spp}, {"seconds_full", full.render.stats.seconds},
-                       {"seconds_with_skip", r.render.stats.seconds}, {"tiles_skipped", culled},
-                       {"tiles", r.tiles.size()}, {"rmse_full", noise}, {"rmse_with_skip", err},
-                       {"error_added", err - noise}, {"skipped", decisions}});
-    };
-    CompositeOptions only_cull = simulate_everything;
-    only_cull.cull_tiles = true;
-    measure("tiles the prop cannot reach", only_cull, s);
-    render::RenderSettings no_caustics = s;
-    no_caustics.caustics = false;
-    measure("caustics", simulate_everything, no_caustics);
-    render::RenderSettings no_bounce = s;
-    no_bounce.prop_interreflection = false;
-    measure("prop interreflection", simulate_everything, no_bounce);
-    CompositeOptions prune = simulate_everything;
-    prune.plan.allow_skips = true;
-    prune.plan.skip_caustics = false;
-    prune.plan.skip_interreflection = false;
-    measure("weak lights pruned", prune, s);
-    measure("the plan (all it decides)", CompositeOptions{}, s);
-    result["skips"] = skips;
-  }
+  progress.stage("bench: render skips at " + std::to_string(options.skip_spp) + " spp");
+  result["skips"] = measure_render_skips(shot.photo_linear, truth, prop, placement, reference.composite_linear,
+                                         options.skip_spp);
   result["render_reference"] = {{"spp", options.reference_spp}, {"seconds", reference.render.stats.seconds},
                                 {"affected_pixels", cv::countNonZero(affected)}};
   return result;
@@ -234,15 +254,7 @@ std::string format_bench(const json& r) {
                   s["rmse_affected"].get<double>(), s["mrays"].get<double>(), 100.0 * s["untouched_fraction"].get<double>());
     out << line;
   }
-  out << "\nRender skips at equal samples (RMSE over the whole image vs the reference)\n"
-         "  skip                          spp  s_full  s_skip  tiles_skipped  rmse_full  rmse_skip\n";
-  for (const auto& s : r["skips"]) {
-    std::snprintf(line, sizeof line, "  %-28s %4d  %6.3f  %6.3f  %6d/%-6d  %9.5f  %9.5f\n",
-                  s["skip"].get<std::string>().c_str(), s["spp"].get<int>(), s["seconds_full"].get<double>(),
-                  s["seconds_with_skip"].get<double>(), s["tiles_skipped"].get<int>(), s["tiles"].get<int>(),
-                  s["rmse_full"].get<double>(), s["rmse_with_skip"].get<double>());
-    out << line;
-  }
+  out << format_render_skips(r["skips"]);
   return out.str();
 }
 

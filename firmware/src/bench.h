@@ -3,7 +3,12 @@
 #pragma once
 
 #include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
 #include <string>
+
+#include "propcam/inference/scene_model.h"
+#include "propcam/render/mesh.h"
+#include "propcam/render/placement.h"
 
 namespace propcam::firmware {
 
@@ -19,6 +24,14 @@ struct BenchOptions {
 };
 
 nlohmann::json run_bench(const BenchOptions& options);
+
+// Each render skip of the transport plan (tile culling, caustics, prop
+// interreflection, light pruning, and the whole plan) against simulating
+// everything at `spp` samples: seconds, tiles skipped, RMSE over the whole
+// image against `reference` (a high-spp render simulating everything).
+nlohmann::json measure_render_skips(const cv::Mat& photo, const inference::SceneModel& truth, const render::Mesh& prop,
+                                    const render::PropPlacement& placement, const cv::Mat& reference, int spp);
+std::string format_render_skips(const nlohmann::json& skips);
 // Human-readable table of a bench result.
 std::string format_bench(const nlohmann::json& result);
 // Writes PNG plots (error against seconds) with gnuplot; throws if it is missing.

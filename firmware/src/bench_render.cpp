@@ -1,5 +1,7 @@
 #include "bench_render.h"
 
+#include "bench.h"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -20,6 +22,9 @@
 
 namespace propcam::firmware {
 namespace {
+
+// The skip comparison's reference uses its own stream.
+constexpr uint64_t kSkipReferenceSeed = 999;
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -215,7 +220,30 @@ json run_render_bench(const RenderBenchOptions& o) {
   const int threads = o.threads > 0 ? o.threads : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
   json sizes = json::array();
   for (const cv::Size& size : o.sizes) sizes.push_back(bench_size(o, prop, prop_height, size, threads, progress));
+  json skips = json::array();
+  if (o.skip_spp > 0 && o.skip_size.area() > 0) {
+    progress.stage("bench render: skips at " + std::to_string(o.skip_size.width) + "x" +
+                   std::to_string(o.skip_size.height));
+    render::SyntheticRoomSpec spec;
+    spec.width = o.skip_size.width;
+    spec.height = o.skip_size.height;
+    spec.seed = static_cast<uint32_t>(o.seed);
+    render::RenderSettings photo_settings;
+    photo_settings.samples_per_pixel = o.photo_spp;
+    const SyntheticShot shot = shoot_synthetic_room(spec, photo_settings);
+    const Eigen::Vector2d at = free_floor_pixel(shot.room);
+    const render::PropPlacement placement{at.x(), at.y(), prop_height, 0.0};
+    render::RenderSettings ref_settings;
+    ref_settings.samples_per_pixel = std::max(o.skip_spp, o.skip_reference_spp);
+    ref_settings.seed = kSkipReferenceSeed;
+    CompositeOptions everything;
+    everything.cull_tiles = false;
+    everything.plan.allow_skips = false;
+    const CompositeResult reference = composite_prop(shot.photo_linear, shot.truth, prop, placement, ref_settings, everything);
+    skips = measure_render_skips(shot.photo_linear, shot.truth, prop, placement, reference.composite_linear, o.skip_spp);
+  }
   return {{"bench", "render"},
+          {"skips", skips},
           {"machine", {{"hardware_threads", std::thread::hardware_concurrency()}}},
           {"threads", threads},
           {"seed", o.seed},
@@ -231,6 +259,7 @@ json run_render_bench(const RenderBenchOptions& o) {
 }
 
 std::string format_render_bench(const json& r) {
+  const std::string skips = r.contains("skips") && !r["skips"].empty() ? format_render_skips(r["skips"]) : "";
   std::ostringstream out;
   char line[320];
   std::snprintf(line, sizeof line,
@@ -267,6 +296,7 @@ std::string format_render_bench(const json& r) {
       out << line;
     }
   }
+  out << skips;
   return out.str();
 }
 

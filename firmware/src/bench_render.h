@@ -27,6 +27,11 @@ struct RenderBenchOptions {
   int photo_spp = 16;           // the synthetic photo (its noise cancels: reference and session share it)
   int threads = 0;              // 0: all hardware threads (session and raw loop alike)
   std::string plot_dir;         // empty: no plots
+  // Each render skip against simulating everything, on a room this size at
+  // `skip_spp` (reference: `skip_reference_spp`, simulating everything). 0: off.
+  cv::Size skip_size{320, 240};
+  int skip_spp = 16;
+  int skip_reference_spp = 256;
   bool quiet = false;
 };
 

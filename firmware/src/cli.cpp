@@ -529,6 +529,14 @@ int run_cli(int argc, char** argv) {
   bench_render->add_option("--max-spp", render_bench_options.max_spp,
                            "The measured session stops here if it never reaches 1%");
   bench_render->add_option("--threads", render_bench_options.threads, "Render threads (0: all hardware threads)");
+  std::string skip_size = "320x240";
+  bench_render->add_option("--skip-size", skip_size, "Room size WxH for the skip comparison");
+  bench_render->add_option("--skip-spp", render_bench_options.skip_spp,
+                           "Samples per pixel of the skip comparison (0: no skip comparison)")
+      ->check(CLI::Range(0, 4096));
+  bench_render->add_option("--skip-reference-spp", render_bench_options.skip_reference_spp,
+                           "Samples per pixel of the skip comparison's reference")
+      ->check(CLI::Range(1, 65536));
   bench_render->add_option("--plot", render_bench_options.plot_dir, "Write one PNG per size (gnuplot) to this folder");
   bench_render->add_flag("--json", render_bench_json, "Machine-readable output");
 
@@ -559,6 +567,9 @@ int run_cli(int argc, char** argv) {
     if (*render_cmd) return cmd_render(render_args);
     if (*bench_render) {
       render_bench_options.sizes = parse_sizes(render_bench_sizes);
+      if (!parse_pair(skip_size, render_bench_options.skip_size.width, render_bench_options.skip_size.height, 'x') ||
+          render_bench_options.skip_size.width < 16 || render_bench_options.skip_size.height < 16)
+        throw std::invalid_argument("--skip-size expects WxH of at least 16x16");
       render_bench_options.quiet = render_bench_json;
       const json result = run_render_bench(render_bench_options);
       if (!render_bench_options.plot_dir.empty()) plot_render_bench(result, render_bench_options.plot_dir);

@@ -166,7 +166,8 @@ TEST(Cli, BenchReportsStagesAndPlots) {
 
 TEST(Cli, BenchRenderReportsSpeedAndErrorPerSize) {
   const std::string plots = temp("render_plots");
-  const CliRun r = propcam("bench render --sizes 96x72 --reference-spp 64 --max-spp 16 --json --plot " + plots);
+  const CliRun r = propcam("bench render --sizes 96x72 --reference-spp 64 --max-spp 16 --skip-size 64x48 --skip-spp 2"
+                           " --skip-reference-spp 8 --json --plot " + plots);
   ASSERT_EQ(r.exit_code, 0) << r.out;
   const json b = json_tail(r.out);
   ASSERT_EQ(b["sizes"].size(), 1u);
@@ -185,6 +186,11 @@ TEST(Cli, BenchRenderReportsSpeedAndErrorPerSize) {
   for (const auto& p : s["curve"])
     for (const char* k : {"spp", "seconds", "rmse_rel"}) EXPECT_TRUE(finite_positive(p[k])) << k << " = " << p[k];
   EXPECT_GT(fs::file_size(plots + "/render_96x72.png"), 1000u);
+  // Each skip of the transport plan against simulating everything.
+  ASSERT_EQ(b["skips"].size(), 5u);
+  for (const auto& k : b["skips"])
+    for (const char* key : {"seconds_full", "seconds_with_skip", "rmse_full", "rmse_with_skip"})
+      EXPECT_TRUE(finite_positive(k[key])) << k["skip"] << " " << key;
   EXPECT_EQ(propcam("bench render --sizes 96by72").exit_code, 2);
 }
 
