@@ -125,6 +125,24 @@ TEST(Cli, CompositeRelightsExplainsAndBlursOnRequest) {
   EXPECT_NE(r.out.find("--light-scale expects"), std::string::npos) << r.out;
 }
 
+TEST(Cli, ViewCutsAPhotoWithAKnownCameraFromAPanorama) {
+  // A panorama the test makes: grey everywhere, a bright band above the horizon.
+  cv::Mat pano(64, 128, CV_32FC3, cv::Scalar(0.2, 0.2, 0.2));
+  pano.rowRange(0, 32).setTo(cv::Scalar(2.0, 2.0, 2.0));
+  const std::string pano_path = temp("pano.exr"), out = temp("view.png");
+  propcam::capture::write_image(pano_path, pano);
+  CliRun r = propcam("view " + pano_path + " --size 80x60 --fov 90 --pitch 10 --json -o " + out);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const json v = json_tail(r.out);
+  EXPECT_NEAR(v["K"]["fx"].get<double>(), 40.0, 1e-9) << "90 degrees across 80 pixels";
+  EXPECT_GT(v["R_world_from_cam"][1][2].get<double>(), 0.0) << "pitch up: the view axis has a positive world y";
+  const cv::Mat img = propcam::capture::read_image_float(out);
+  EXPECT_EQ(img.cols, 80);
+  EXPECT_EQ(img.rows, 60);
+  r = propcam("view " + pano_path + " --fov 200 -o " + temp("bad.png"));
+  EXPECT_NE(r.exit_code, 0);
+}
+
 TEST(Cli, BadInputIsAClearErrorNotACrash) {
   CliRun r = propcam("composite " + fixture_photo() + " --prop vase --at banana -o " + temp("x.png"));
   EXPECT_EQ(r.exit_code, 2);
