@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "bench.h"
+#include "bench_camera.h"
 #include "compositor.h"
 #include "progress.h"
 #include "propcam/capture/image_file.h"
@@ -514,6 +515,8 @@ int run_cli(int argc, char** argv) {
   bench->add_option("--reference-spp", bench_options.reference_spp, "Samples per pixel of the reference render");
   bench->add_option("--plot", bench_options.plot_dir, "Write PNG plots (gnuplot) to this folder");
   bench->add_flag("--json", bench_json, "Machine-readable output");
+  CameraBenchArgs bench_camera_args;
+  auto* bench_camera = add_bench_camera_command(*bench, bench_camera_args);
 
   ViewArgs view_args;
   auto* view = app.add_subcommand("view", "Cut a rectilinear photo with a known camera out of an HDR panorama");
@@ -540,6 +543,7 @@ int run_cli(int argc, char** argv) {
     if (*synth) return cmd_synth(synth_args);
     if (*view) return cmd_view(view_args);
     if (*render_cmd) return cmd_render(render_args);
+    if (*bench_camera) return run_bench_camera_command(bench_camera_args);
     if (*bench) {
       if (!parse_pair(bench_size, bench_options.width, bench_options.height, 'x') || bench_options.width < 32 ||
           bench_options.height < 32)

@@ -173,6 +173,48 @@ std::vector<LineSegment> read_lines_csv(const std::string& path) {
   return lines;
 }
 
+std::vector<LineSegment> read_lines_nyu(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error("cannot open lines file '" + path + "'");
+  std::string row;
+  if (!std::getline(in, row)) throw std::runtime_error(path + ": empty file (expected a header)");
+  // Column positions from the header.
+  std::vector<std::string> names;
+  {
+    std::istringstream header(row);
+    for (std::string name; header >> name;) names.push_back(name);
+  }
+  const auto column = [&](const char* name, bool required) {
+    const auto it = std::find(names.begin(), names.end(), name);
+    if (it == names.end()) {
+      if (required) throw std::runtime_error(path + ": header has no column '" + name + "'");
+      return -1;
+    }
+    return static_cast<int>(it - names.begin());
+  };
+  const int x1 = column("point1_x", true), y1 = column("point1_y", true), z1 = column("point1_z", false);
+  const int x2 = column("point2_x", true), y2 = column("point2_y", true), z2 = column("point2_z", false);
+  const int needed = std::max({x1, y1, z1, x2, y2, z2}) + 1;
+  std::vector<LineSegment> lines;
+  std::vector<double> v;
+  int line_number = 1;
+  while (std::getline(in, row)) {
+    ++line_number;
+    if (row.find_first_not_of(" \t\r") == std::string::npos) continue;
+    std::istringstream fields(row);
+    v.clear();
+    for (double x; static_cast<int>(v.size()) < needed && fields >> x;) v.push_back(x);
+    if (static_cast<int>(v.size()) < needed)
+      throw std::runtime_error(path + ":" + std::to_string(line_number) + ": expected " + std::to_string(needed) +
+                               " numbers");
+    const double w1 = z1 >= 0 ? v[z1] : 1.0, w2 = z2 >= 0 ? v[z2] : 1.0;
+    if (w1 == 0.0 || w2 == 0.0) continue;  // an endpoint at infinity is no segment
+    LineSegment l{{v[x1] / w1, v[y1] / w1}, {v[x2] / w2, v[y2] / w2}};
+    if (l.a.allFinite() && l.b.allFinite() && l.length() > 0) lines.push_back(l);
+  }
+  return lines;
+}
+
 CameraEstimate estimate_camera(const std::vector<LineSegment>& lines, int width, int height,
                                const CameraOptions& options) {
   const auto start = std::chrono::steady_clock::now();

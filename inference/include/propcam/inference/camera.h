@@ -30,6 +30,14 @@ std::vector<LineSegment> detect_lines(const cv::Mat& photo_linear, const LineDet
 // Reads `x1,y1,x2,y2` rows (a header line and blank lines are skipped).
 std::vector<LineSegment> read_lines_csv(const std::string& path);
 
+// Reads the NYU-VP / YUD line tables of Kluger et al. (CONSAC): a header that
+// names space-separated columns, endpoints in point1_x point1_y point1_z and
+// point2_x point2_y point2_z (homogeneous, pixels, y down). Other columns are
+// ignored; rows with non-finite or coincident endpoints are dropped. Throws
+// std::runtime_error on a missing file, a header without those columns or a
+// short row.
+std::vector<LineSegment> read_lines_nyu(const std::string& path);
+
 struct CameraOptions {
   double prior_focal_px = 0.0;   // 0: 0.85 * max(width, height), a typical 60-degree lens
   int focal_hypotheses = 15;     // log-spaced over [0.4, 2.5] x prior
