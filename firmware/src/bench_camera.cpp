@@ -32,9 +32,12 @@ constexpr double kRadToDeg = 180.0 / std::numbers::pi;
 constexpr double kOrthogonalToleranceDeg = 5.0;
 // Focal-error shares reported.
 constexpr double kFocalBands[] = {0.05, 0.10, 0.20};
-// The sweep: RANSAC samples per focal hypothesis x focal hypotheses.
+// The sweep: line-pair samples (RANSAC iterations) for each number of
+// candidate vanishing points kept, then the focal hypotheses tried for pairs
+// that do not fix the focal length.
 constexpr int kSweepIterations[] = {25, 50, 100, 200, 400, 800};
-constexpr int kSweepHypotheses[] = {5, 9, 15, 25};
+constexpr int kSweepCandidates[] = {4, 8, 12, 20};
+constexpr int kSweepFocalHypotheses[] = {1, 3, 5, 7, 11, 15};
 
 struct Image {
   std::string id;
@@ -138,6 +141,13 @@ Evaluation evaluate(const std::vector<Image>& images, const inference::CameraOpt
     ev.cases[est.report.why] += 1;
     json entry = {{"id", im.id}, {"lines", im.lines.size()}, {"fx", est.fx}, {"focal_err", focal_err},
                   {"focal_from_vps", est.focal_from_vanishing_points}, {"case", est.report.why}, {"seconds", seconds}};
+    json vps = json::array();  // homogeneous pixels (x, y, w): the point is (x/w, y/w), at infinity when w = 0
+    for (const Vector3d& d : est.directions_cam)
+      vps.push_back({est.fx * d.x() + est.cx * d.z(), est.fy * d.y() + est.cy * d.z(), d.z()});
+    entry["vps"] = vps;
+    entry["support_px"] = est.support;
+    entry["focal_log_std"] = est.report.details.value("focal_log_std", json(nullptr));
+    entry["inliers"] = est.report.details.value("inliers_per_axis", json::array());
     const std::vector<Vector3d> gt = orthogonal_subset(im.gt_dirs);
     if (!gt.empty()) {
       // Estimated axes as vanishing points (estimated K), back-projected with
@@ -212,13 +222,16 @@ json run_camera_bench(const CameraBenchOptions& o) {
   json result;
   inference::CameraOptions defaults;
   defaults.prior_focal_px = o.prior_focal_px;
+  defaults.fixed_focal = o.fixed_focal;
   result["dataset"] = {{"dir", o.nyu_dir}, {"images", images.size()}, {"skipped_without_vps", missing_vps},
                        {"size", {o.width, o.height}},
                        {"true_intrinsics", {{"fx", t.fx}, {"fy", t.fy}, {"cx", t.cx}, {"cy", t.cy}}}};
   result["options"] = {{"ransac_iterations", defaults.ransac_iterations},
+                       {"candidate_vps", defaults.candidate_vps},
                        {"focal_hypotheses", defaults.focal_hypotheses},
-                       {"inlier_angle_deg", defaults.inlier_angle_deg},
+                       {"inlier_distance_px", defaults.inlier_distance_px},
                        {"prior_focal_px", defaults.prior_focal_px},
+                       {"fixed_focal", defaults.fixed_focal},
                        {"seed", defaults.seed}};
   const Evaluation ev = evaluate(images, defaults, o, 1, &progress);
   result["focal_rel_error"] = focal_json(ev.focal_err);
@@ -242,20 +255,29 @@ json run_camera_bench(const CameraBenchOptions& o) {
   json sweep = json::array();
   if (o.sweep_images > 0) {
     const size_t stride = std::max<size_t>(1, (images.size() + o.sweep_images - 1) / o.sweep_images);
-    for (int h : kSweepHypotheses)
+    const auto point = [&](const std::string& series, int value, const inference::CameraOptions& co) {
+      progress.stage("bench camera: sweep " + series + ", " + std::to_string(value));
+      const Evaluation s = evaluate(images, co, o, stride, nullptr);
+      const json f = focal_json(s.focal_err);
+      sweep.push_back({{"series", series}, {"value", value}, {"ransac_iterations", co.ransac_iterations},
+                       {"candidate_vps", co.candidate_vps}, {"focal_hypotheses", co.focal_hypotheses},
+                       {"images", s.focal_err.size()}, {"seconds_per_image", mean(s.seconds)},
+                       {"focal_err_median", f["median"]}, {"focal_within_10", f["within_10"]},
+                       {"axis_err_median_deg", percentile(s.axis_err, 0.5)},
+                       {"axis_err_p90_deg", percentile(s.axis_err, 0.9)}});
+    };
+    for (int c : kSweepCandidates)
       for (int it : kSweepIterations) {
-        progress.stage("bench camera: sweep " + std::to_string(h) + " focal hypotheses x " + std::to_string(it) +
-                       " samples");
         inference::CameraOptions co = defaults;
-        co.focal_hypotheses = h;
+        co.candidate_vps = c;
         co.ransac_iterations = it;
-        const Evaluation s = evaluate(images, co, o, stride, nullptr);
-        const json f = focal_json(s.focal_err);
-        sweep.push_back({{"focal_hypotheses", h}, {"ransac_iterations", it}, {"images", s.focal_err.size()},
-                         {"seconds_per_image", mean(s.seconds)}, {"focal_err_median", f["median"]},
-                         {"focal_within_10", f["within_10"]}, {"axis_err_median_deg", percentile(s.axis_err, 0.5)},
-                         {"axis_err_p90_deg", percentile(s.axis_err, 0.9)}});
+        point(std::to_string(c) + " candidates, samples", it, co);
       }
+    for (int h : kSweepFocalHypotheses) {
+      inference::CameraOptions co = defaults;
+      co.focal_hypotheses = h;
+      point("focal hypotheses", h, co);
+    }
   }
   result["sweep"] = sweep;
   return result;
@@ -268,8 +290,8 @@ std::string format_camera_bench(const json& r) {
   const json& a = r["axis_error_deg"];
   const json& ao = r["axis_error_own_k_deg"];
   out << "Camera stage on " << r["dataset"]["images"] << " images of " << r["dataset"]["dir"].get<std::string>()
-      << " (" << r["options"]["focal_hypotheses"] << " focal hypotheses x " << r["options"]["ransac_iterations"]
-      << " RANSAC samples, focal prior " << (r["options"]["prior_focal_px"].get<double>() > 0
+      << " (" << r["options"]["ransac_iterations"] << " line-pair samples, " << r["options"]["candidate_vps"]
+      << " candidate VPs, " << r["options"]["focal_hypotheses"] << " focal hypotheses, focal prior " << (r["options"]["prior_focal_px"].get<double>() > 0
                                                ? std::to_string(r["options"]["prior_focal_px"].get<int>()) + " px"
                                                : std::string("default")) << ")\n";
   std::snprintf(line, sizeof line,
@@ -292,10 +314,11 @@ std::string format_camera_bench(const json& r) {
   out << line;
   if (!r["sweep"].empty()) {
     out << "\nSweep (" << r["sweep"][0]["images"] << " images): error vs time\n"
-        << "  hypotheses  samples  s/image   focal_med  focal<=10%  axis_med  axis_p90\n";
+        << "  samples  candidates  focal_hyp  s/image   focal_med  focal<=10%  axis_med  axis_p90\n";
     for (const auto& s : r["sweep"]) {
-      std::snprintf(line, sizeof line, "  %10d  %7d  %7.4f   %9.3f  %9.0f%%  %8.2f  %8.2f\n", s["focal_hypotheses"].get<int>(),
-                    s["ransac_iterations"].get<int>(), s["seconds_per_image"].get<double>(),
+      std::snprintf(line, sizeof line, "  %7d  %10d  %9d  %7.4f   %9.3f  %9.0f%%  %8.2f  %8.2f\n",
+                    s["ransac_iterations"].get<int>(), s["candidate_vps"].get<int>(), s["focal_hypotheses"].get<int>(),
+                    s["seconds_per_image"].get<double>(),
                     s["focal_err_median"].get<double>(), 100 * s["focal_within_10"].get<double>(),
                     num(s["axis_err_median_deg"]), num(s["axis_err_p90_deg"]));
       out << line;
@@ -310,16 +333,17 @@ void plot_camera_bench(const json& r, const std::string& dir) {
   fs::create_directories(dir);
   const fs::path d(dir);
   {
-    // One gnuplot data block per focal-hypothesis count (blank-line separated).
+    // One gnuplot data block per series (blank-line separated, titled by its
+    // first line): value, seconds per image, median focal and axis errors.
     std::ofstream dat(d / "camera_sweep.dat");
-    dat << "# focal_hypotheses ransac_iterations seconds_per_image focal_err_median axis_err_median_deg\n";
-    int last = -1;
+    std::string last;
     for (const auto& s : r["sweep"]) {
-      if (last >= 0 && s["focal_hypotheses"].get<int>() != last) dat << "\n\n";
-      last = s["focal_hypotheses"].get<int>();
+      const std::string series = s["series"].get<std::string>();
+      if (series != last) dat << (last.empty() ? "" : "\n\n") << "\"" << series << "\" seconds focal axis\n";
+      last = series;
       const auto num = [](const json& j) { return j.is_number() ? j.get<double>() : 0.0; };
-      dat << last << " " << s["ransac_iterations"] << " " << s["seconds_per_image"] << " " << num(s["focal_err_median"])
-          << " " << num(s["axis_err_median_deg"]) << "\n";
+      dat << s["value"] << " " << s["seconds_per_image"] << " " << num(s["focal_err_median"]) << " "
+          << num(s["axis_err_median_deg"]) << "\n";
     }
     std::vector<double> e;
     for (const auto& im : r["images"]) e.push_back(im["focal_err"].get<double>());
@@ -333,15 +357,15 @@ void plot_camera_bench(const json& r, const std::string& dir) {
   gp << "set terminal png size 800,560\nset grid\nset key top right\n"
         "set logscale x\n"
         "set output '" << (d / "camera_sweep_focal.png").string() << "'\n"
-        "set title 'Camera stage on NYU-VP: median focal error vs time (labels: RANSAC samples)'\n"
+        "set title 'Camera stage on NYU-VP: median focal error vs time (labels: the knob value)'\n"
         "set xlabel 'seconds per image'\nset ylabel 'median |f/f_{true} - 1|'\n"
-        "plot for [i=0:*] '" << sweep << "' index i using 3:4 with linespoints pt 7 title columnhead(1).' hypotheses', "
-        "'" << sweep << "' using 3:4:2 with labels offset 1,1 notitle\n"
+        "plot for [i=0:*] '" << sweep << "' index i using 2:3 with linespoints pt 7 title columnhead(1), "
+        "'" << sweep << "' using 2:3:1 with labels offset 1,1 notitle\n"
         "set output '" << (d / "camera_sweep_axes.png").string() << "'\n"
-        "set title 'Camera stage on NYU-VP: median axis error vs time (labels: RANSAC samples)'\n"
+        "set title 'Camera stage on NYU-VP: median axis error vs time (labels: the knob value)'\n"
         "set ylabel 'median axis error (deg)'\n"
-        "plot for [i=0:*] '" << sweep << "' index i using 3:5 with linespoints pt 7 title columnhead(1).' hypotheses', "
-        "'" << sweep << "' using 3:5:2 with labels offset 1,1 notitle\n"
+        "plot for [i=0:*] '" << sweep << "' index i using 2:4 with linespoints pt 7 title columnhead(1), "
+        "'" << sweep << "' using 2:4:1 with labels offset 1,1 notitle\n"
         "unset logscale x\nset xrange [0:0.5]\nset yrange [0:1]\n"
         "set output '" << (d / "camera_focal_cdf.png").string() << "'\n"
         "set title 'Camera stage on NYU-VP: share of images within a focal error'\n"
@@ -359,6 +383,7 @@ CLI::App* add_bench_camera_command(CLI::App& bench, CameraBenchArgs& a) {
   cmd->add_option("--intrinsics", a.intrinsics, "True FX,FY,CX,CY (default: NYU's Kinect)");
   cmd->add_option("--prior-focal", a.options.prior_focal_px, "Focal prior in pixels given to the stage (0: its default)")
       ->check(CLI::NonNegativeNumber);
+  cmd->add_flag("--fixed-focal", a.options.fixed_focal, "Use the focal prior as the focal length (rotation only)");
   cmd->add_option("--max-images", a.options.max_images, "Use only the first N images (0: all)");
   cmd->add_option("--sweep-images", a.options.sweep_images, "Images per sweep point, evenly spaced (0: no sweep)");
   cmd->add_option("--plot", a.options.plot_dir, "Write PNG plots (gnuplot) to this folder");
