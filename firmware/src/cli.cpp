@@ -13,6 +13,7 @@
 
 #include "bench.h"
 #include "bench_render.h"
+#include "bench_camera.h"
 #include "compositor.h"
 #include "progress.h"
 #include "propcam/capture/image_file.h"
@@ -515,6 +516,8 @@ int run_cli(int argc, char** argv) {
   bench->add_option("--reference-spp", bench_options.reference_spp, "Samples per pixel of the reference render");
   bench->add_option("--plot", bench_options.plot_dir, "Write PNG plots (gnuplot) to this folder");
   bench->add_flag("--json", bench_json, "Machine-readable output");
+  CameraBenchArgs bench_camera_args;
+  auto* bench_camera = add_bench_camera_command(*bench, bench_camera_args);
 
   RenderBenchOptions render_bench_options;
   bool render_bench_json = false;
@@ -577,6 +580,7 @@ int run_cli(int argc, char** argv) {
       else std::cout << format_render_bench(result);
       return 0;
     }
+    if (*bench_camera) return run_bench_camera_command(bench_camera_args);
     if (*bench) {
       if (!parse_pair(bench_size, bench_options.width, bench_options.height, 'x') || bench_options.width < 32 ||
           bench_options.height < 32)

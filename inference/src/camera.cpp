@@ -1,5 +1,6 @@
 #include "propcam/inference/camera.h"
 
+#include <Eigen/Dense>
 #include <ceres/ceres.h>
 #include <ceres/rotation.h>
 
@@ -7,6 +8,7 @@
 #include <chrono>
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <numbers>
 #include <opencv2/imgproc.hpp>
 #include <random>
@@ -16,94 +18,249 @@ namespace propcam::inference {
 namespace {
 
 using Eigen::Matrix3d;
+using Eigen::Vector2d;
 using Eigen::Vector3d;
 
 constexpr double kDegToRad = std::numbers::pi / 180.0;
-// Cross products shorter than this are treated as parallel (degenerate sample).
-constexpr double kDegenerateCross = 1e-6;
-// A direction with |z| below this is a vanishing point at infinity (it
-// carries no information about the focal length).
-constexpr double kFiniteVanishingZ = 0.15;
-// Penalty per unit |log(f / prior)| that breaks ties toward the focal prior.
-constexpr double kFocalPriorWeight = 0.03;
-// The up direction must lie within this angle of the image's vertical axis.
-constexpr double kMaxUpTiltDeg = 50.0;
 
-struct LineNormal {
-  Vector3d n;     // unit normal of the plane through the camera centre and the line
-  double weight;  // line length in pixels
+// --- Lines ---
+// Segments with an endpoint farther outside the frame than this share of its
+// size are not image lines (absurd or corrupt coordinates): ignored.
+constexpr double kMaxOutsideFraction = 0.5;
+// Segments shorter than this share of the image diagonal are ignored, as the
+// line stage does (detect_lines): a short segment fits almost any vanishing
+// point (half of NYU-VP's LSD segments are shorter; they pulled vanishing
+// points into clutter).
+constexpr double kMinSegmentOfDiagonal = 0.025;
+// ... and shorter than this many inlier tolerances (with a custom tolerance):
+// a 2-tolerance segment fits every direction within 30 degrees.
+constexpr double kMinSegmentOverTolerance = 5.0;
+// The search uses at most this many (longest) segments; all are labelled.
+constexpr int kMaxSearchLines = 400;
+// Default inlier tolerance (endpoint distance): LSD endpoints on real photos
+// are good to about a pixel; 2 px at 640x480, whose diagonal is 800 px.
+constexpr double kInlierDistanceOfDiagonal = 0.0025;
+// Floor for that tolerance on tiny images, pixels.
+constexpr double kMinInlierDistancePx = 0.75;
+
+// --- Vanishing-point candidates ---
+// Homogeneous intersections shorter than this are degenerate (the two
+// segments lie on one line).
+constexpr double kDegenerateCross = 1e-9;
+// Candidates closer than this (as directions at the prior focal length) are
+// one vanishing point: a second copy is skipped.
+constexpr double kCandidateSeparationDeg = 2.0;
+// Greedy coverage counts a line as explained by a pick within this many
+// squared tolerances (2x the distance): real edges (cloth, a distorted lens)
+// scatter a little more than LSD's pixel, and copies of one vanishing point
+// would otherwise fill the candidate list.
+constexpr double kCoverageTolerance2 = 4.0;
+
+// Knob ceilings, so that any options stay bounded in time (the defaults are
+// 300, 12 and 7).
+constexpr int kMaxSamples = 20000;
+constexpr int kMaxCandidates = 40;
+constexpr int kMaxFocalHypotheses = 25;
+
+// --- Focal length ---
+// Default focal prior: 0.85 x the longest side, a 60-degree horizontal view.
+constexpr double kDefaultFocalOverSide = 0.85;
+// Focal search range relative to the prior. With the default prior this
+// spans horizontal fields of view of about 26 to 107 degrees.
+constexpr double kMinFocalRatio = 0.4;
+constexpr double kMaxFocalRatio = 2.5;
+// Score penalty per unit |log(f / prior)|: breaks near-ties toward the prior.
+constexpr double kFocalPriorWeight = 0.03;
+// A direction with |z| below this has its vanishing point more than 6.6 focal
+// lengths from the principal point and says little about the focal length
+// (f from two vanishing points moves 3.4x a direction's angular error there).
+constexpr double kFiniteVanishingZ = 0.15;
+// The focal length comes from the lines only when all three directions are
+// supported: two vanishing points fit some focal length whatever they are
+// (f^2 = -p.q has no redundancy), the third checks them. On the hotel-room
+// views, two-direction focal lengths were off by -28% to +144%.
+constexpr int kMinDirectionsForFocal = 3;
+// Line endpoints are taken to scatter by half the inlier tolerance (1 px at
+// 640x480) ...
+constexpr double kLineSigmaOfTolerance = 0.5;
+// ... and the focal length is taken from the lines only when they fix log(f)
+// to this standard deviation; otherwise the prior. On NYU-VP the real error
+// runs ~1.5x this figure (distortion, principal point, labels), so 8% keeps
+// focal lengths from lines near 10%.
+constexpr double kMaxFocalLogStd = 0.08;
+// When they do, a weak prior on log(f) is still added (25%: a phone or board
+// lens is rarely further from the 60-degree default).
+constexpr double kFocalPriorSigma = 0.25;
+
+// --- Frame ---
+// A lone supported direction within this angle of the image's vertical axis
+// is the vertical; otherwise it is horizontal.
+constexpr double kMaxUpTiltDeg = 50.0;
+// Label, refine, relabel: at most this many Ceres solves.
+constexpr int kMaxRefineRounds = 3;
+
+// A segment in normalised image coordinates: pixels relative to the
+// principal point, divided by the prior focal length (so a vanishing point
+// (x, y, w) is close to its 3D direction at the prior focal length).
+struct Line {
+  int index;      // in the caller's list
+  Vector2d mid;   // midpoint
+  Vector2d dir;   // unit direction
+  double half;    // half length
+  Vector3d hom;   // homogeneous line, (a, b) of unit length
+  double weight;  // length in pixels
 };
 
-std::vector<LineNormal> interpretation_normals(const std::vector<LineSegment>& lines, double f, double cx, double cy) {
-  std::vector<LineNormal> out;
-  out.reserve(lines.size());
-  for (const auto& l : lines) {
-    const Vector3d a((l.a.x() - cx) / f, (l.a.y() - cy) / f, 1.0);
-    const Vector3d b((l.b.x() - cx) / f, (l.b.y() - cy) / f, 1.0);
-    Vector3d n = a.cross(b);
-    const double len = n.norm();
-    out.push_back({len > 0 ? Vector3d(n / len) : Vector3d::Zero(), len > 0 ? l.length() : 0.0});
-  }
-  return out;
+// Squared distance of the segment's endpoints from the line through its
+// midpoint and the vanishing point v (homogeneous: finite or at infinity),
+// in normalised units.
+double endpoint_distance2(const Line& l, const Vector3d& v) {
+  const double wx = v.x() - l.mid.x() * v.z(), wy = v.y() - l.mid.y() * v.z();
+  const double w2 = wx * wx + wy * wy;
+  if (!(w2 > 0.0)) return l.half * l.half;  // the vanishing point on the midpoint fixes no direction
+  const double c = l.dir.x() * wy - l.dir.y() * wx;
+  return l.half * l.half * c * c / w2;
 }
 
-// Soft support of three orthogonal directions: each line votes for the
-// direction its interpretation plane contains best.
-double score_frame(const std::vector<LineNormal>& normals, const std::array<Vector3d, 3>& dirs, double tolerance,
-                   std::array<double, 3>* per_direction = nullptr, std::vector<int>* labels = nullptr) {
+// Soft vote of a line for a vanishing point: 1 on it, 0 at the tolerance.
+double vote(const Line& l, const Vector3d& v, double tol2) { return 1.0 - endpoint_distance2(l, v) / tol2; }
+
+// Length-weighted soft support of up to three vanishing points; each line
+// votes for the one it fits best. Optionally the label (or -1) of each line.
+double score_vps(const std::vector<Line>& lines, const Vector3d* vps, int n, double tol2,
+                 std::vector<int>* labels = nullptr) {
   double total = 0.0;
-  if (per_direction) per_direction->fill(0.0);
-  if (labels) labels->assign(normals.size(), -1);
-  const double tol2 = tolerance * tolerance;
-  for (size_t i = 0; i < normals.size(); ++i) {
+  if (labels) labels->assign(lines.size(), -1);
+  for (size_t i = 0; i < lines.size(); ++i) {
     double best = 0.0;
     int best_k = -1;
-    for (int k = 0; k < 3; ++k) {
-      const double c = normals[i].n.dot(dirs[k]);
-      const double vote = 1.0 - c * c / tol2;
-      if (vote > best) {
-        best = vote;
+    for (int k = 0; k < n; ++k) {
+      const double s = vote(lines[i], vps[k], tol2);
+      if (s > best) {
+        best = s;
         best_k = k;
       }
     }
     if (best_k < 0) continue;
-    total += best * normals[i].weight;
-    if (per_direction) (*per_direction)[best_k] += normals[i].weight;
+    total += best * lines[i].weight;
     if (labels) (*labels)[i] = best_k;
   }
   return total;
 }
 
-// Residual for one inlier line: the cosine between its interpretation-plane
-// normal and its assigned direction. Parameters: rotation (angle-axis, 3) of
-// the Manhattan frame in camera coordinates, and log focal length (1).
-struct LineDirectionResidual {
-  LineDirectionResidual(const LineSegment& l, double cx, double cy, int axis, double weight)
-      : ax(l.a.x() - cx), ay(l.a.y() - cy), bx(l.b.x() - cx), by(l.b.y() - cy), axis(axis), weight(weight) {}
+// Vanishing point of a direction at focal length g (normalised units), and back.
+Vector3d vp_of(const Vector3d& d, double g) { return {g * d.x(), g * d.y(), d.z()}; }
+Vector3d direction_of(const Vector3d& v, double g) { return Vector3d(v.x() / g, v.y() / g, v.z()).normalized(); }
+
+struct Frame {
+  std::array<Vector3d, 3> d;  // orthonormal, right-handed
+  double g = 1.0;             // focal length / prior
+  double score = -1.0;
+};
+
+// The Manhattan frame whose first two axes are closest to the vanishing
+// points va, vb at focal length g (the second is made orthogonal).
+bool make_frame(const Vector3d& va, const Vector3d& vb, double g, Frame& f) {
+  const Vector3d a = direction_of(va, g);
+  Vector3d b = direction_of(vb, g);
+  b -= a.dot(b) * a;
+  if (!(b.norm() > 1e-6) || !a.allFinite()) return false;
+  b.normalize();
+  f.d = {a, b, a.cross(b)};
+  f.g = g;
+  return true;
+}
+
+std::array<Vector3d, 3> frame_vps(const Frame& f) { return {vp_of(f.d[0], f.g), vp_of(f.d[1], f.g), vp_of(f.d[2], f.g)}; }
+
+// The least-squares vanishing point of the lines that vote for v (smallest
+// eigenvector of the weighted scatter of their homogeneous lines).
+Vector3d refit_vp(const std::vector<Line>& lines, const Vector3d& v, double tol2) {
+  Matrix3d scatter = Matrix3d::Zero();
+  int inliers = 0;
+  for (const auto& l : lines) {
+    const double s = vote(l, v, tol2);
+    if (s <= 0) continue;
+    scatter += s * l.weight * l.hom * l.hom.transpose();
+    ++inliers;
+  }
+  if (inliers < 3) return v;
+  Eigen::SelfAdjointEigenSolver<Matrix3d> eig;
+  eig.computeDirect(scatter);
+  const Vector3d r = eig.eigenvectors().col(0);
+  return r.allFinite() && r.norm() > 0.5 ? Vector3d(r.normalized()) : v;
+}
+
+// Residual of one inlier line: the signed distance (pixels) of its endpoint
+// from the line through its midpoint and its axis' vanishing point.
+// Parameters: the Manhattan frame's rotation (angle-axis) in camera
+// coordinates and log(f / prior).
+struct EndpointResidual {
+  EndpointResidual(const Line& l, int axis, double scale_px)
+      : mx(l.mid.x()), my(l.mid.y()), tx(l.dir.x()), ty(l.dir.y()), half_px(l.half * scale_px), axis(axis) {}
 
   template <typename T>
-  bool operator()(const T* const angle_axis, const T* const log_focal, T* residual) const {
-    const T f = exp(log_focal[0]);
-    const T a[3] = {T(ax) / f, T(ay) / f, T(1)};
-    const T b[3] = {T(bx) / f, T(by) / f, T(1)};
-    T n[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-    const T norm = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+  bool operator()(const T* const angle_axis, const T* const log_g, T* residual) const {
     T unit_axis[3] = {T(0), T(0), T(0)};
     unit_axis[axis] = T(1);
     T d[3];
     ceres::AngleAxisRotatePoint(angle_axis, unit_axis, d);
-    residual[0] = T(weight) * (n[0] * d[0] + n[1] * d[1] + n[2] * d[2]) / norm;
+    const T g = exp(log_g[0]);
+    const T wx = g * d[0] - T(mx) * d[2], wy = g * d[1] - T(my) * d[2];
+    // The floor keeps the derivative finite if a vanishing point crosses a midpoint.
+    const T w = sqrt(wx * wx + wy * wy + T(1e-18));
+    residual[0] = T(half_px) * (T(tx) * wy - T(ty) * wx) / w;
     return true;
   }
-  double ax, ay, bx, by;
+  double mx, my, tx, ty, half_px;
   int axis;
+};
+
+// Weak prior on log(f / prior) in the same units as the line residuals.
+struct FocalPriorResidual {
+  explicit FocalPriorResidual(double weight) : weight(weight) {}
+  template <typename T>
+  bool operator()(const T* const log_g, T* residual) const {
+    residual[0] = T(weight) * log_g[0];
+    return true;
+  }
   double weight;
 };
 
-Matrix3d frame_matrix(const std::array<Vector3d, 3>& dirs) {
+// Standard deviation of log(f) that the labelled lines alone determine: the
+// inverse Gauss-Newton Hessian of their robustly weighted endpoint residuals
+// (noise sigma_px each) over the rotation and log f, by central differences.
+double focal_log_std(const std::vector<Line>& lines, const std::vector<int>& labels, const std::array<bool, 3>& supported,
+                     const std::array<Vector3d, 3>& d, double g, double scale_px, double sigma_px, double loss_px) {
   Matrix3d m;
-  for (int k = 0; k < 3; ++k) m.col(k) = dirs[k];
-  return m;
+  for (int k = 0; k < 3; ++k) m.col(k) = d[k];
+  double p[4];
+  ceres::RotationMatrixToAngleAxis(m.data(), p);
+  p[3] = std::log(g);
+  Eigen::Matrix4d h = Eigen::Matrix4d::Zero();
+  constexpr double kStep = 1e-6;
+  for (size_t i = 0; i < lines.size(); ++i) {
+    if (labels[i] < 0 || !supported[labels[i]]) continue;
+    const EndpointResidual f(lines[i], labels[i], scale_px);
+    double r0;
+    f(p, p + 3, &r0);
+    Eigen::Vector4d j;
+    for (int c = 0; c < 4; ++c) {
+      double q[4] = {p[0], p[1], p[2], p[3]}, rp, rm;
+      q[c] += kStep;
+      f(q, q + 3, &rp);
+      q[c] -= 2 * kStep;
+      f(q, q + 3, &rm);
+      j[c] = (rp - rm) / (2 * kStep);
+    }
+    const double w = 1.0 / (1.0 + (r0 / loss_px) * (r0 / loss_px));  // Cauchy weight
+    h += w * j * j.transpose();
+  }
+  h /= sigma_px * sigma_px;
+  const Eigen::FullPivLU<Eigen::Matrix4d> lu(h);
+  if (!lu.isInvertible()) return std::numeric_limits<double>::infinity();
+  const double var = lu.inverse()(3, 3);
+  return var > 0 && std::isfinite(var) ? std::sqrt(var) : std::numeric_limits<double>::infinity();
 }
 
 }  // namespace
@@ -113,6 +270,7 @@ const char* to_string(CameraCase c) {
     case CameraCase::ThreeVanishingPoints: return "three_vanishing_points";
     case CameraCase::TwoVanishingPoints: return "two_vanishing_points";
     case CameraCase::VerticalOnly: return "vertical_only";
+    case CameraCase::HorizontalOnly: return "horizontal_only";
     case CameraCase::NoVanishingPoints: return "no_vanishing_points";
   }
   return "no_vanishing_points";
@@ -173,152 +331,348 @@ std::vector<LineSegment> read_lines_csv(const std::string& path) {
   return lines;
 }
 
-CameraEstimate estimate_camera(const std::vector<LineSegment>& lines, int width, int height,
+std::vector<LineSegment> read_lines_nyu(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error("cannot open lines file '" + path + "'");
+  std::string row;
+  if (!std::getline(in, row)) throw std::runtime_error(path + ": empty file (expected a header)");
+  // Column positions from the header.
+  std::vector<std::string> names;
+  {
+    std::istringstream header(row);
+    for (std::string name; header >> name;) names.push_back(name);
+  }
+  const auto column = [&](const char* name, bool required) {
+    const auto it = std::find(names.begin(), names.end(), name);
+    if (it == names.end()) {
+      if (required) throw std::runtime_error(path + ": header has no column '" + name + "'");
+      return -1;
+    }
+    return static_cast<int>(it - names.begin());
+  };
+  const int x1 = column("point1_x", true), y1 = column("point1_y", true), z1 = column("point1_z", false);
+  const int x2 = column("point2_x", true), y2 = column("point2_y", true), z2 = column("point2_z", false);
+  const int needed = std::max({x1, y1, z1, x2, y2, z2}) + 1;
+  std::vector<LineSegment> lines;
+  std::vector<double> v;
+  int line_number = 1;
+  while (std::getline(in, row)) {
+    ++line_number;
+    if (row.find_first_not_of(" \t\r") == std::string::npos) continue;
+    std::istringstream fields(row);
+    v.clear();
+    for (double x; static_cast<int>(v.size()) < needed && fields >> x;) v.push_back(x);
+    if (static_cast<int>(v.size()) < needed)
+      throw std::runtime_error(path + ":" + std::to_string(line_number) + ": expected " + std::to_string(needed) +
+                               " numbers");
+    const double w1 = z1 >= 0 ? v[z1] : 1.0, w2 = z2 >= 0 ? v[z2] : 1.0;
+    if (w1 == 0.0 || w2 == 0.0) continue;  // an endpoint at infinity is no segment
+    LineSegment l{{v[x1] / w1, v[y1] / w1}, {v[x2] / w2, v[y2] / w2}};
+    if (l.a.allFinite() && l.b.allFinite() && l.length() > 0) lines.push_back(l);
+  }
+  return lines;
+}
+
+CameraEstimate estimate_camera(const std::vector<LineSegment>& input, int width, int height,
                                const CameraOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   if (width <= 0 || height <= 0) throw std::invalid_argument("estimate_camera: image size must be positive");
   CameraEstimate est;
   est.cx = (width - 1) / 2.0;
   est.cy = (height - 1) / 2.0;
-  const double prior_f = options.prior_focal_px > 0 ? options.prior_focal_px : 0.85 * std::max(width, height);
-  const double tolerance = std::sin(options.inlier_angle_deg * kDegToRad);
+  const double prior_f = options.prior_focal_px > 0 && std::isfinite(options.prior_focal_px)
+                             ? options.prior_focal_px
+                             : kDefaultFocalOverSide * std::max(width, height);
+  const double tol_px = options.inlier_distance_px > 0 && std::isfinite(options.inlier_distance_px)
+                            ? options.inlier_distance_px
+                            : std::max(kMinInlierDistancePx, kInlierDistanceOfDiagonal * std::hypot(width, height));
+  const double tol = tol_px / prior_f;  // normalised units
+  const double tol2 = tol * tol;
+  const double g_min = options.fixed_focal ? 1.0 : kMinFocalRatio;
+  const double g_max = options.fixed_focal ? 1.0 : kMaxFocalRatio;
 
-  // 1. Exhaustive focal hypotheses x RANSAC over minimal samples: two lines
-  //    fix one direction, a third line fixes the second, the third follows.
-  std::array<Vector3d, 3> best_dirs = {Vector3d::UnitX(), Vector3d::UnitY(), Vector3d::UnitZ()};
-  double best_score = -1.0, best_f = prior_f;
+  // 1. Usable segments, in normalised coordinates (pixels from the principal
+  //    point over the prior focal length).
+  std::vector<Line> all;
+  {
+    const double ox = kMaxOutsideFraction * width, oy = kMaxOutsideFraction * height;
+    const auto inside = [&](const Eigen::Vector2d& p) {
+      return p.allFinite() && p.x() >= -ox && p.x() <= width - 1 + ox && p.y() >= -oy && p.y() <= height - 1 + oy;
+    };
+    const Vector2d centre(est.cx, est.cy);
+    const double min_length =
+        std::max(kMinSegmentOfDiagonal * std::hypot(width, height), kMinSegmentOverTolerance * tol_px);
+    for (size_t i = 0; i < input.size(); ++i) {
+      const LineSegment& s = input[i];
+      if (!inside(s.a) || !inside(s.b) || !(s.length() >= min_length)) continue;
+      const Vector2d a = (s.a - centre) / prior_f, b = (s.b - centre) / prior_f;
+      Line l;
+      l.index = static_cast<int>(i);
+      l.mid = 0.5 * (a + b);
+      l.dir = (b - a).normalized();
+      l.half = 0.5 * (b - a).norm();
+      l.hom = Vector3d(a.x(), a.y(), 1.0).cross(Vector3d(b.x(), b.y(), 1.0));
+      l.hom /= l.hom.head<2>().norm();
+      l.weight = s.length();
+      all.push_back(l);
+    }
+  }
+  std::vector<Line> search = all;
+  std::stable_sort(search.begin(), search.end(), [](const Line& p, const Line& q) { return p.weight > q.weight; });
+  if (search.size() > static_cast<size_t>(kMaxSearchLines)) search.resize(kMaxSearchLines);
+
+  // 2. Vanishing-point candidates: intersections of length-weighted random
+  //    pairs of segments (homogeneous, so points at infinity are ordinary),
+  //    each with its soft, length-weighted support; up to `candidate_vps` are
+  //    picked by greedy coverage and refitted to their inliers.
   std::mt19937_64 rng(options.seed);
-  if (lines.size() >= 3) {
-    std::vector<double> weights;
-    for (const auto& l : lines) weights.push_back(l.length());
-    std::discrete_distribution<int> pick(weights.begin(), weights.end());
-    const int hypotheses = std::max(1, options.focal_hypotheses);
-    for (int h = 0; h < hypotheses; ++h) {
-      const double t = hypotheses == 1 ? 0.5 : static_cast<double>(h) / (hypotheses - 1);
-      const double f = prior_f * std::exp(std::log(0.4) + t * (std::log(2.5) - std::log(0.4)));
-      const auto normals = interpretation_normals(lines, f, est.cx, est.cy);
-      const double prior_penalty = 1.0 - kFocalPriorWeight * std::abs(std::log(f / prior_f));
-      for (int it = 0; it < options.ransac_iterations; ++it) {
-        const int i = pick(rng), j = pick(rng), k = pick(rng);
-        if (i == j || i == k || j == k) continue;
-        Vector3d d1 = normals[i].n.cross(normals[j].n);
-        if (d1.norm() < kDegenerateCross) continue;
-        d1.normalize();
-        Vector3d d2 = d1.cross(normals[k].n);
-        if (d2.norm() < kDegenerateCross) continue;
-        d2.normalize();
-        const std::array<Vector3d, 3> dirs = {d1, d2, d1.cross(d2).normalized()};
-        const double score = score_frame(normals, dirs, tolerance) * prior_penalty;
-        if (score > best_score) {
-          best_score = score;
-          best_dirs = dirs;
-          best_f = f;
+  std::vector<Vector3d> kept;
+  int candidates_sampled = 0;
+  if (search.size() >= 2) {
+    std::vector<double> cumulative;
+    double total = 0;
+    for (const auto& l : search) cumulative.push_back(total += l.weight);
+    std::uniform_real_distribution<double> u(0.0, total);
+    const auto pick = [&] {
+      const auto it = std::upper_bound(cumulative.begin(), cumulative.end(), u(rng));
+      return std::min<size_t>(it - cumulative.begin(), search.size() - 1);
+    };
+    // Each candidate's positive votes, sparse: (line, vote).
+    std::vector<Vector3d> candidates;
+    std::vector<std::vector<std::pair<int, double>>> votes;
+    const auto votes_of = [&](const Vector3d& v) {
+      std::vector<std::pair<int, double>> out;
+      for (size_t i = 0; i < search.size(); ++i) {
+        const double s = vote(search[i], v, tol2);
+        if (s > 0) out.emplace_back(static_cast<int>(i), s);
+      }
+      return out;
+    };
+    const int samples = std::clamp(options.ransac_iterations, 0, kMaxSamples);
+    for (int it = 0; it < samples; ++it) {
+      const size_t i = pick(), j = pick();
+      if (i == j) continue;
+      Vector3d v = search[i].hom.cross(search[j].hom);
+      if (!(v.norm() > kDegenerateCross)) continue;
+      v.normalize();
+      candidates.push_back(v);
+      votes.push_back(votes_of(v));
+    }
+    candidates_sampled = static_cast<int>(candidates.size());
+    // Greedy coverage: each pick is the candidate that explains the most line
+    // length not yet explained by earlier picks, so a second sample of the
+    // strongest vanishing point (or a blend of two) does not crowd out a
+    // weaker one; the pick is then refitted to its inliers.
+    std::vector<double> covered(search.size(), 0.0);
+    std::vector<char> used(candidates.size(), 0);
+    const size_t want = static_cast<size_t>(std::clamp(options.candidate_vps, 0, kMaxCandidates));
+    const double same = std::cos(kCandidateSeparationDeg * kDegToRad);
+    while (kept.size() < want) {
+      double best_gain = 0.0;
+      int best_c = -1;
+      for (size_t c = 0; c < candidates.size(); ++c) {
+        if (used[c]) continue;
+        double gain = 0.0;
+        for (const auto& [i, s] : votes[c]) gain += std::max(0.0, s - covered[i]) * search[i].weight;
+        if (gain > best_gain) {
+          best_gain = gain;
+          best_c = static_cast<int>(c);
         }
       }
+      if (best_c < 0) break;
+      used[best_c] = 1;
+      const Vector3d v = refit_vp(search, candidates[best_c], tol2);
+      const Vector3d dv = direction_of(v, 1.0);
+      if (std::any_of(kept.begin(), kept.end(),
+                      [&](const Vector3d& k) { return std::abs(direction_of(k, 1.0).dot(dv)) > same; }))
+        continue;
+      kept.push_back(v);
+      // Lines near (not only within) the tolerance of a pick count as
+      // explained: real edges (cloth, distortion) scatter a little more.
+      for (size_t i = 0; i < search.size(); ++i)
+        covered[i] = std::max(covered[i], vote(search[i], v, kCoverageTolerance2 * tol2));
     }
   }
 
-  // 2. Label lines, count support, decide which directions are real.
-  auto normals = interpretation_normals(lines, best_f, est.cx, est.cy);
-  std::vector<int> labels;
-  std::array<double, 3> support{};
-  score_frame(normals, best_dirs, tolerance, &support, &labels);
-  std::array<int, 3> counts{};
-  for (int l : labels)
-    if (l >= 0) ++counts[l];
-  int supported = 0;
-  int finite_supported = 0;
-  for (int k = 0; k < 3; ++k)
-    if (counts[k] >= options.min_support_lines) {
-      ++supported;
-      if (std::abs(best_dirs[k].z()) > kFiniteVanishingZ) ++finite_supported;
+  // 3. Manhattan frames from pairs of candidates. Two finite vanishing points
+  //    of orthogonal directions fix the focal length (f^2 = -(p.q) for
+  //    points p, q relative to the principal point); the third direction is
+  //    their cross product. A pair with a point near infinity leaves f free:
+  //    then log-spaced focal hypotheses let the third direction's lines choose.
+  std::vector<double> focal_grid = {1.0};
+  if (!options.fixed_focal)
+    for (int h = 0, n = std::min(options.focal_hypotheses, kMaxFocalHypotheses); h < n && n > 1; ++h) {
+      const double t = static_cast<double>(h) / (n - 1);
+      const double g = std::exp(std::log(g_min) + t * (std::log(g_max) - std::log(g_min)));
+      if (std::abs(std::log(g)) > 1e-3) focal_grid.push_back(g);  // the prior is already in
     }
+  Frame best;
+  int hypotheses = 0;
+  const auto consider = [&](const Vector3d& va, const Vector3d& vb, double g) {
+    Frame f;
+    if (!make_frame(va, vb, g, f)) return;
+    const auto vps = frame_vps(f);
+    f.score = score_vps(search, vps.data(), 3, tol2) * (1.0 - kFocalPriorWeight * std::abs(std::log(g)));
+    ++hypotheses;
+    if (f.score > best.score) best = f;
+  };
+  for (size_t i = 0; i < kept.size(); ++i)
+    for (size_t j = i + 1; j < kept.size(); ++j) {
+      const Vector3d& a = kept[i];
+      const Vector3d& b = kept[j];
+      if (!options.fixed_focal) {
+        const double g2 = -(a.x() * b.x() + a.y() * b.y()) / (a.z() * b.z());
+        if (std::isfinite(g2) && g2 >= g_min * g_min && g2 <= g_max * g_max) {
+          const double g = std::sqrt(g2);
+          if (std::abs(direction_of(a, g).z()) >= kFiniteVanishingZ &&
+              std::abs(direction_of(b, g).z()) >= kFiniteVanishingZ) {
+            consider(a, b, g);
+            continue;
+          }
+        }
+        const bool near_infinity = std::abs(direction_of(a, 1.0).z()) < kFiniteVanishingZ ||
+                                   std::abs(direction_of(b, 1.0).z()) < kFiniteVanishingZ;
+        if (!near_infinity) continue;  // two finite points that no focal length in range makes orthogonal
+      }
+      for (double g : focal_grid) consider(a, b, g);
+    }
+  if (best.score < 0 && !kept.empty()) {
+    // A single candidate: its direction and the level direction orthogonal to it.
+    const Vector3d a = direction_of(kept[0], 1.0);
+    Vector3d b = Vector3d::UnitY() - a.y() * a;
+    if (b.norm() < 1e-6) b = Vector3d::UnitX() - a.x() * a;
+    consider(kept[0], vp_of(b.normalized(), 1.0), 1.0);
+  }
 
-  // 3. Refine rotation (and focal length when two finite vanishing points
-  //    constrain it) with bounded robust least squares.
-  double focal = best_f;
-  int refine_iterations = 0;
+  // 4. Refine: label the lines, then bounded robust least squares (Cauchy)
+  //    of their endpoint distances over the frame's rotation, and over the
+  //    focal length when the lines fix it (three supported directions, two
+  //    finite vanishing points, std of log f <= kMaxFocalLogStd; a weak prior
+  //    on it); relabel and repeat while the labels change.
+  Frame frame = best;
+  const bool have_frame = best.score >= 0;
+  if (!have_frame) frame.d = {Vector3d::UnitX(), Vector3d::UnitY(), Vector3d::UnitZ()};
+  std::array<bool, 3> supported{};
+  int supported_count = 0;
+  bool observable = false;
+  double log_f_std = std::numeric_limits<double>::infinity();
+  const auto assess = [&](std::vector<int>& labels) {
+    const auto vps = frame_vps(frame);
+    score_vps(search, vps.data(), 3, tol2, &labels);
+    std::array<int, 3> counts{};
+    for (int l : labels)
+      if (l >= 0) ++counts[l];
+    supported_count = 0;
+    int finite = 0;
+    for (int k = 0; k < 3; ++k) {
+      supported[k] = have_frame && counts[k] >= options.min_support_lines;
+      supported_count += supported[k];
+      finite += supported[k] && std::abs(frame.d[k].z()) >= kFiniteVanishingZ;
+    }
+    observable = !options.fixed_focal && supported_count >= kMinDirectionsForFocal && finite >= 2;
+    log_f_std = observable ? focal_log_std(search, labels, supported, frame.d, frame.g, prior_f,
+                                           kLineSigmaOfTolerance * tol_px, tol_px)
+                           : std::numeric_limits<double>::infinity();
+    if (log_f_std > kMaxFocalLogStd) observable = false;
+  };
+  int refine_iterations = 0, refine_rounds = 0;
   bool refine_converged = false;
   double final_cost = 0.0;
-  const bool refine_focal = supported == 3 && finite_supported >= 2;
-  if (supported >= 2) {
-    Matrix3d frame = frame_matrix(best_dirs);
-    if (frame.determinant() < 0) frame.col(2) *= -1.0;
+  std::vector<int> labels, previous;
+  bool previous_observable = false;
+  for (int round = 0; have_frame && round < kMaxRefineRounds; ++round) {
+    assess(labels);
+    if (round > 0 && labels == previous && observable == previous_observable) break;
+    previous = labels;
+    previous_observable = observable;
+    if (!observable) frame.g = 1.0;
+    if (supported_count == 0) break;
+    Matrix3d m;
+    for (int k = 0; k < 3; ++k) m.col(k) = frame.d[k];
     double angle_axis[3];
-    ceres::RotationMatrixToAngleAxis(frame.data(), angle_axis);
-    double log_focal = std::log(refine_focal ? best_f : prior_f);
-    ceres::Problem problem;
-    for (size_t i = 0; i < lines.size(); ++i) {
-      if (labels[i] < 0) continue;
-      auto* cost = new ceres::AutoDiffCostFunction<LineDirectionResidual, 1, 3, 1>(
-          new LineDirectionResidual(lines[i], est.cx, est.cy, labels[i], std::sqrt(lines[i].length())));
-      problem.AddResidualBlock(cost, new ceres::CauchyLoss(tolerance * 4.0), angle_axis, &log_focal);
+    ceres::RotationMatrixToAngleAxis(m.data(), angle_axis);
+    double log_g = std::log(frame.g);
+    ceres::CauchyLoss loss(tol_px);
+    ceres::Problem::Options problem_options;
+    problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+    ceres::Problem problem(problem_options);
+    for (size_t i = 0; i < search.size(); ++i) {
+      if (labels[i] < 0 || !supported[labels[i]]) continue;
+      problem.AddResidualBlock(new ceres::AutoDiffCostFunction<EndpointResidual, 1, 3, 1>(
+                                   new EndpointResidual(search[i], labels[i], prior_f)),
+                               &loss, angle_axis, &log_g);
     }
-    if (problem.NumResidualBlocks() > 0) {
-      if (!refine_focal) problem.SetParameterBlockConstant(&log_focal);
-      else {
-        problem.SetParameterLowerBound(&log_focal, 0, std::log(prior_f * 0.3));
-        problem.SetParameterUpperBound(&log_focal, 0, std::log(prior_f * 3.0));
-      }
-      ceres::Solver::Options solver;
-      solver.max_num_iterations = options.max_refine_iterations;
-      solver.max_solver_time_in_seconds = 2.0;
-      solver.linear_solver_type = ceres::DENSE_QR;
-      solver.num_threads = 1;
-      ceres::Solver::Summary summary;
-      ceres::Solve(solver, &problem, &summary);
-      refine_iterations = static_cast<int>(summary.iterations.size());
-      refine_converged = summary.termination_type == ceres::CONVERGENCE;
-      final_cost = summary.final_cost;
-      double refined[9];
-      ceres::AngleAxisToRotationMatrix(angle_axis, refined);
-      const Eigen::Map<Matrix3d> refined_frame(refined);
-      if (refined_frame.allFinite() && std::isfinite(log_focal) && summary.IsSolutionUsable()) {
-        for (int k = 0; k < 3; ++k) best_dirs[k] = refined_frame.col(k);
-        focal = std::exp(log_focal);
-      }
+    if (!observable) {
+      problem.SetParameterBlockConstant(&log_g);
+    } else {
+      problem.AddResidualBlock(new ceres::AutoDiffCostFunction<FocalPriorResidual, 1, 1>(
+                                   new FocalPriorResidual(kLineSigmaOfTolerance * tol_px / kFocalPriorSigma)),
+                               nullptr, &log_g);
+      problem.SetParameterLowerBound(&log_g, 0, std::log(g_min));
+      problem.SetParameterUpperBound(&log_g, 0, std::log(g_max));
+    }
+    ceres::Solver::Options solver;
+    solver.max_num_iterations = options.max_refine_iterations;
+    solver.max_solver_time_in_seconds = options.max_refine_seconds;
+    solver.linear_solver_type = ceres::DENSE_QR;
+    solver.num_threads = 1;
+    ceres::Solver::Summary summary;
+    ceres::Solve(solver, &problem, &summary);
+    ++refine_rounds;
+    refine_iterations += static_cast<int>(summary.iterations.size());
+    refine_converged = summary.termination_type == ceres::CONVERGENCE;
+    final_cost = summary.final_cost;
+    double refined[9];
+    ceres::AngleAxisToRotationMatrix(angle_axis, refined);
+    const Eigen::Map<Matrix3d> r(refined);
+    if (r.allFinite() && std::isfinite(log_g) && summary.IsSolutionUsable()) {
+      for (int k = 0; k < 3; ++k) frame.d[k] = r.col(k);
+      frame.g = std::exp(log_g);
     }
   }
-  if (!refine_focal) focal = prior_f;
-  normals = interpretation_normals(lines, focal, est.cx, est.cy);
-  score_frame(normals, best_dirs, tolerance, &support, &labels);
-  counts = {};
-  for (int l : labels)
-    if (l >= 0) ++counts[l];
+  assess(labels);
+  if (!observable) frame.g = 1.0;
+  const double focal = prior_f * frame.g;
 
-  // 4. Which direction is up: the supported one closest to the image's
-  //    vertical axis (camera -y), if near enough. Otherwise a level camera.
-  int up = -1;
-  double best_vertical = std::cos(kMaxUpTiltDeg * kDegToRad);
-  for (int k = 0; k < 3; ++k) {
-    if (counts[k] < options.min_support_lines) continue;
-    if (std::abs(best_dirs[k].y()) > best_vertical) {
-      best_vertical = std::abs(best_dirs[k].y());
-      up = k;
-    }
-  }
-  Vector3d up_cam = up >= 0 ? best_dirs[up] : Vector3d(0, -1, 0);
-  if (up_cam.y() > 0) up_cam = -up_cam;  // camera y points down
-  // World Z: the supported horizontal direction closest to pointing back at the camera.
-  Vector3d z_cam = Vector3d::Zero();
-  double best_facing = -1.0;
-  for (int k = 0; k < 3; ++k) {
-    if (k == up || counts[k] < options.min_support_lines) continue;
-    Vector3d d = best_dirs[k] - best_dirs[k].dot(up_cam) * up_cam;
-    if (d.norm() < kDegenerateCross) continue;
-    d.normalize();
-    if (d.z() > 0) d = -d;
-    if (-d.z() > best_facing) {
-      best_facing = -d.z();
+  // 5. World axes. Up: with two or more supported directions the whole frame
+  //    is known and up is its axis nearest the image's vertical; a lone
+  //    direction near the vertical is up (yaw unknown); a lone horizontal one
+  //    gets the level up orthogonal to it (no roll); none: a level camera.
+  Vector3d up_cam(0, -1, 0), z_cam = Vector3d::Zero();
+  if (supported_count >= 2) {
+    int up = 0;
+    for (int k = 1; k < 3; ++k)
+      if (std::abs(frame.d[k].y()) > std::abs(frame.d[up].y())) up = k;
+    up_cam = frame.d[up];
+    // World Z: the other axis nearest the optical axis (it will face the camera).
+    for (int k = 0; k < 3; ++k)
+      if (k != up && (z_cam.isZero() || std::abs(frame.d[k].z()) > std::abs(z_cam.z()))) z_cam = frame.d[k];
+    est.which = supported_count == 3 ? CameraCase::ThreeVanishingPoints : CameraCase::TwoVanishingPoints;
+  } else if (supported_count == 1) {
+    const int k = supported[0] ? 0 : supported[1] ? 1 : 2;
+    const Vector3d& d = frame.d[k];
+    if (std::abs(d.y()) >= std::cos(kMaxUpTiltDeg * kDegToRad)) {
+      up_cam = d;
+      est.which = CameraCase::VerticalOnly;
+    } else {
+      up_cam = Vector3d(0, -1, 0) + d.y() * d;
       z_cam = d;
+      est.which = CameraCase::HorizontalOnly;
     }
+  } else {
+    est.which = CameraCase::NoVanishingPoints;
   }
-  if (z_cam.isZero()) {
+  if (!(up_cam.norm() > 1e-9)) up_cam = Vector3d(0, -1, 0);
+  up_cam.normalize();
+  if (up_cam.y() > 0) up_cam = -up_cam;  // camera y points down
+  z_cam -= z_cam.dot(up_cam) * up_cam;
+  if (!(z_cam.norm() > 1e-6)) {
     // No horizontal vanishing direction: world Z is the camera's backward axis made level.
     z_cam = Vector3d(0, 0, -1) - Vector3d(0, 0, -1).dot(up_cam) * up_cam;
-    if (z_cam.norm() < kDegenerateCross) z_cam = Vector3d(0, 1, 0) - Vector3d(0, 1, 0).dot(up_cam) * up_cam;
-    z_cam.normalize();
+    if (z_cam.norm() < 1e-6) z_cam = Vector3d(0, 1, 0) - Vector3d(0, 1, 0).dot(up_cam) * up_cam;
   }
+  z_cam.normalize();
+  if (z_cam.z() > 0) z_cam = -z_cam;  // world Z points back at the camera
   const Vector3d x_cam = up_cam.cross(z_cam).normalized();
   // Columns of R_cam_from_world are the world axes in camera coordinates.
   Matrix3d R_cam_from_world;
@@ -327,21 +681,24 @@ CameraEstimate estimate_camera(const std::vector<LineSegment>& lines, int width,
   R_cam_from_world.col(2) = x_cam.cross(up_cam);
   est.R_world_from_cam = R_cam_from_world.transpose();
   est.directions_cam = {R_cam_from_world.col(0), R_cam_from_world.col(1), R_cam_from_world.col(2)};
+  est.focal_from_vanishing_points = observable;
+  est.fx = est.fy = observable ? focal : prior_f;
 
-  // Relabel lines against the final world axes.
-  normals = interpretation_normals(lines, focal, est.cx, est.cy);
-  score_frame(normals, est.directions_cam, tolerance, &est.support, &est.line_labels);
+  // Label every input line against the final world axes.
+  const double g_final = est.fx / prior_f;
+  const std::array<Vector3d, 3> world_vps = {vp_of(est.directions_cam[0], g_final), vp_of(est.directions_cam[1], g_final),
+                                             vp_of(est.directions_cam[2], g_final)};
+  std::vector<int> all_labels;
+  score_vps(all, world_vps.data(), est.which == CameraCase::NoVanishingPoints ? 0 : 3, tol2, &all_labels);
+  est.line_labels.assign(input.size(), -1);
   std::array<int, 3> final_counts{};
-  for (int l : est.line_labels)
-    if (l >= 0) ++final_counts[l];
-  const int horizontal_supported = (final_counts[0] >= options.min_support_lines) +
-                                   (final_counts[2] >= options.min_support_lines);
-  if (up < 0) est.which = CameraCase::NoVanishingPoints;
-  else if (refine_focal && horizontal_supported == 2) est.which = CameraCase::ThreeVanishingPoints;
-  else if (horizontal_supported >= 1) est.which = CameraCase::TwoVanishingPoints;
-  else est.which = CameraCase::VerticalOnly;
-  est.focal_from_vanishing_points = est.which == CameraCase::ThreeVanishingPoints;
-  est.fx = est.fy = est.focal_from_vanishing_points ? focal : prior_f;
+  est.support.fill(0.0);
+  for (size_t i = 0; i < all.size(); ++i) {
+    if (all_labels[i] < 0) continue;
+    est.line_labels[all[i].index] = all_labels[i];
+    ++final_counts[all_labels[i]];
+    est.support[all_labels[i]] += all[i].weight;
+  }
 
   StageReport& r = est.report;
   r.stage = "camera";
@@ -349,19 +706,30 @@ CameraEstimate estimate_camera(const std::vector<LineSegment>& lines, int width,
   r.why = to_string(est.which);
   r.iterations = refine_iterations;
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  r.details = {{"lines", lines.size()},
+  r.details = {{"lines", input.size()},
+               {"lines_used", all.size()},
+               {"candidates", candidates_sampled},
+               {"distinct_candidates", kept.size()},
+               {"frame_hypotheses", hypotheses},
                {"inliers_per_axis", {final_counts[0], final_counts[1], final_counts[2]}},
+               {"inlier_distance_px", tol_px},
                {"focal_px", est.fx},
                {"focal_prior_px", prior_f},
+               {"focal_from_vanishing_points", est.focal_from_vanishing_points},
+               {"focal_log_std", std::isfinite(log_f_std) ? nlohmann::json(log_f_std) : nlohmann::json(nullptr)},
+               {"refine_rounds", refine_rounds},
                {"refine_converged", refine_converged},
                {"refine_final_cost", final_cost}};
-  if (!est.R_world_from_cam.allFinite() || !std::isfinite(est.fx)) {
+  if (!est.R_world_from_cam.allFinite() || !std::isfinite(est.fx) || !(est.fx > 0)) {
     // Never hand on non-finite numbers: fall back to a level camera.
     est.R_world_from_cam = Matrix3d::Identity();
     est.R_world_from_cam(1, 1) = -1;
     est.R_world_from_cam(2, 2) = -1;
+    est.directions_cam = {Vector3d::UnitX(), Vector3d(0, -1, 0), Vector3d(0, 0, -1)};
     est.fx = est.fy = prior_f;
     est.which = CameraCase::NoVanishingPoints;
+    est.focal_from_vanishing_points = false;
+    est.line_labels.assign(input.size(), -1);
     r.why = "non-finite estimate replaced by a level camera";
   }
   return est;

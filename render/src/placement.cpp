@@ -10,6 +10,8 @@ namespace {
 // Lifts the prop off its support so its base does not z-fight with it.
 constexpr float kBaseClearanceM = 1e-3f;
 constexpr double kDegToRad = std::numbers::pi / 180.0;
+// Sub-pixel offset of the retries after a miss (see place_prop).
+constexpr double kMissRetryOffsetPx = 0.25;
 }  // namespace
 
 PlacedProp place_prop(const Mesh& prop, const PinholeCamera& camera, const Scene& background,
@@ -22,10 +24,18 @@ PlacedProp place_prop(const Mesh& prop, const PinholeCamera& camera, const Scene
                                 std::to_string(camera.width) + "x" + std::to_string(camera.height) + " photo");
   if (prop.empty()) throw std::invalid_argument("the prop mesh is empty");
   const Eigen::Vector3f origin = camera.center_world.cast<float>();
-  const Eigen::Vector3f dir = camera.ray_direction(placement.pixel_u, placement.pixel_v).cast<float>();
+  Eigen::Vector3f dir = camera.ray_direction(placement.pixel_u, placement.pixel_v).cast<float>();
   RayHit hit;
-  if (!background.intersect(origin, dir, std::numeric_limits<float>::infinity(), false, hit))
-    throw std::invalid_argument("no surface is seen at pixel " + where.str() + " to stand the prop on");
+  bool seen = background.intersect(origin, dir, std::numeric_limits<float>::infinity(), false, hit);
+  // A ray through a vertex or an edge of the depth mesh (its vertices sit on
+  // pixel centres) can slip through Embree's fast, not watertight, test: on a
+  // miss, look a little off the pixel centre.
+  for (int k = 0; !seen && k < 4; ++k) {
+    const double du = (k & 1 ? 1 : -1) * kMissRetryOffsetPx, dv = (k & 2 ? 1 : -1) * kMissRetryOffsetPx;
+    dir = camera.ray_direction(placement.pixel_u + du, placement.pixel_v + dv).cast<float>();
+    seen = background.intersect(origin, dir, std::numeric_limits<float>::infinity(), false, hit);
+  }
+  if (!seen) throw std::invalid_argument("no surface is seen at pixel " + where.str() + " to stand the prop on");
   const SurfacePoint sp = background.surface(hit, origin, dir);
   const double tilt_deg = std::acos(std::clamp<double>(sp.geometric_normal.y(), -1.0, 1.0)) / kDegToRad;
   if (tilt_deg > kMaxSupportTiltDeg) {

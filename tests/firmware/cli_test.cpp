@@ -7,8 +7,10 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <random>
 
 #include "propcam/capture/image_file.h"
+#include "propcam/render/camera.h"
 
 namespace {
 
@@ -210,6 +212,92 @@ TEST(Cli, BenchRenderReportsSpeedAndErrorPerSize) {
     for (const char* key : {"seconds_full", "seconds_with_skip", "rmse_full", "rmse_with_skip"})
       EXPECT_TRUE(finite_positive(k[key])) << k["skip"] << " " << key;
   EXPECT_EQ(propcam("bench render --sizes 96by72").exit_code, 2);
+}
+
+// A tiny NYU-VP-format folder (lsd_lines_NNNN.csv, vps_NNNN.csv) of
+// segments projected from axis-aligned 3D edges with a known 640x480 camera
+// (f = 500, principal point at the centre), 0.4 px noise.
+std::string synthetic_nyu_folder() {
+  const fs::path dir = temp("nyu_vp");
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  std::mt19937_64 rng(17);
+  std::uniform_real_distribution<double> x(-3, 3), y(0, 3), z(-8, -1.5), len(0.5, 1.5);
+  std::normal_distribution<double> noise(0, 0.4);
+  const std::array<std::pair<double, double>, 3> views = {{{30, -10}, {-40, -5}, {25, 8}}};  // yaw, pitch (deg)
+  for (size_t n = 0; n < views.size(); ++n) {
+    const double yaw = views[n].first * M_PI / 180, pitch = views[n].second * M_PI / 180;
+    propcam::render::PinholeCamera cam;
+    cam.width = 640;
+    cam.height = 480;
+    cam.fx = cam.fy = 500;
+    cam.cx = 319.5;
+    cam.cy = 239.5;
+    const Eigen::Vector3d forward(-std::sin(yaw) * std::cos(pitch), std::sin(pitch), -std::cos(yaw) * std::cos(pitch));
+    const Eigen::Vector3d right = forward.cross(Eigen::Vector3d::UnitY()).normalized();
+    cam.R_world_from_cam.col(0) = right;
+    cam.R_world_from_cam.col(1) = forward.cross(right);
+    cam.R_world_from_cam.col(2) = forward;
+    cam.center_world = {0, 1.5, 0};
+    char id[8];
+    std::snprintf(id, sizeof id, "%04zu", n);
+    std::ofstream lines(dir / (std::string("lsd_lines_") + id + ".csv"));
+    lines << "line_hom_a line_hom_b line_hom_c centroid_x centroid_y centroid_z point1_x point1_y point1_z "
+             "point2_x point2_y point2_z\n";
+    for (int axis = 0; axis < 3; ++axis)
+      for (int made = 0, tries = 0; made < 25 && tries < 1000; ++tries) {
+        const Eigen::Vector3d p(x(rng), y(rng), z(rng));
+        Eigen::Vector3d q = p;
+        q[axis] += len(rng);
+        Eigen::Vector2d a, b;
+        if (!cam.project(p, a) || !cam.project(q, b) || (a - b).norm() < 25) continue;
+        if (a.minCoeff() < 0 || b.minCoeff() < 0 || a.x() > 639 || b.x() > 639 || a.y() > 479 || b.y() > 479) continue;
+        a += Eigen::Vector2d(noise(rng), noise(rng));
+        b += Eigen::Vector2d(noise(rng), noise(rng));
+        const Eigen::Vector3d l = Eigen::Vector3d(a.x(), a.y(), 1).cross(Eigen::Vector3d(b.x(), b.y(), 1));
+        lines << l.x() << " " << l.y() << " " << l.z() << " " << (a.x() + b.x()) / 2 << " " << (a.y() + b.y()) / 2
+              << " 1 " << a.x() << " " << a.y() << " 1 " << b.x() << " " << b.y() << " 1\n";
+        ++made;
+      }
+    std::ofstream vps(dir / (std::string("vps_") + id + ".csv"));
+    vps << "idx X Y\n";
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector3d d = cam.R_world_from_cam.row(k).transpose();  // world axis k in camera coordinates
+      vps << k << " " << cam.fx * d.x() / d.z() + cam.cx << " " << cam.fy * d.y() / d.z() + cam.cy << "\n";
+    }
+  }
+  return dir.string();
+}
+
+TEST(Cli, BenchCameraOnANyuFormatFolder) {
+  const std::string plots = temp("camera_plots");
+  const CliRun r = propcam("bench camera --nyu " + synthetic_nyu_folder() +
+                           " --intrinsics 500,500,319.5,239.5 --sweep-images 3 --json --plot " + plots);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const json b = json_tail(r.out);
+  EXPECT_EQ(b["dataset"]["images"], 3);
+  for (const char* k : {"median", "mean", "p90", "within_5", "within_10", "within_20"})
+    EXPECT_TRUE(b["focal_rel_error"][k].is_number()) << k;
+  for (const char* k : {"median", "p90", "mean", "count", "metric"}) EXPECT_TRUE(b["axis_error_deg"].contains(k)) << k;
+  int cases = 0;
+  for (const char* k : {"three_vanishing_points", "two_vanishing_points", "vertical_only", "no_vanishing_points"})
+    cases += b["cases"][k].get<int>();
+  EXPECT_EQ(cases + b["cases"].value("horizontal_only", 0), 3);
+  EXPECT_GT(b["seconds_per_image"]["mean"].get<double>(), 0.0);
+  ASSERT_EQ(b["images"].size(), 3u);
+  EXPECT_EQ(b["images"][0]["id"], "0000");
+  ASSERT_FALSE(b["sweep"].empty());
+  for (const char* k : {"ransac_iterations", "candidate_vps", "focal_hypotheses", "seconds_per_image",
+                        "focal_err_median", "axis_err_median_deg"})
+    EXPECT_TRUE(b["sweep"][0].contains(k)) << k;
+  // A clean synthetic set: the camera must come out right.
+  EXPECT_LT(b["focal_rel_error"]["median"].get<double>(), 0.03);
+  EXPECT_LT(b["axis_error_deg"]["median"].get<double>(), 1.0);
+  EXPECT_GT(fs::file_size(plots + "/camera_sweep_focal.png"), 1000u);
+  EXPECT_GT(fs::file_size(plots + "/camera_focal_cdf.png"), 1000u);
+  const CliRun bad = propcam("bench camera --nyu " + temp("no_such_folder"));
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_NE(bad.out.find("--nyu"), std::string::npos) << bad.out;
 }
 
 // The example scene (render/examples/cornell) copied to a temporary folder

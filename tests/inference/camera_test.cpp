@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <numbers>
 #include <random>
 
@@ -50,6 +51,49 @@ std::vector<LineSegment> manhattan_lines(const render::PinholeCamera& cam, int p
       if (!inside(a) || !inside(b) || (a - b).norm() < 20) continue;
       lines.push_back({a + Eigen::Vector2d(noise(rng), noise(rng)), b + Eigen::Vector2d(noise(rng), noise(rng))});
     }
+  return lines;
+}
+
+// The camera turned about its optical axis by `roll_deg` (image rotated clockwise).
+render::PinholeCamera rolled(render::PinholeCamera cam, double roll_deg) {
+  const double r = roll_deg / kRadToDeg;
+  const Eigen::Vector3d right = cam.R_world_from_cam.col(0), down = cam.R_world_from_cam.col(1);
+  cam.R_world_from_cam.col(0) = std::cos(r) * right + std::sin(r) * down;
+  cam.R_world_from_cam.col(1) = -std::sin(r) * right + std::cos(r) * down;
+  return cam;
+}
+
+// Worst angle between a true world axis and the nearest estimated one (as
+// lines: sign-free), both in camera coordinates.
+double axes_error_deg(const CameraEstimate& est, const render::PinholeCamera& cam) {
+  double worst = 0;
+  for (int k = 0; k < 3; ++k) {
+    const Eigen::Vector3d truth = cam.R_world_from_cam.row(k).transpose();
+    double best = 90;
+    for (const auto& d : est.directions_cam)
+      best = std::min(best, std::acos(std::clamp(std::abs(d.dot(truth)), 0.0, 1.0)) * kRadToDeg);
+    worst = std::max(worst, best);
+  }
+  return worst;
+}
+
+// `count` projected segments along one world axis only.
+std::vector<LineSegment> axis_lines(const render::PinholeCamera& cam, int axis, int count, double noise_px,
+                                    uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> x(-3, 3), y(0, 3), z(-8, -1.5), len(0.5, 1.5);
+  std::normal_distribution<double> noise(0, noise_px);
+  std::vector<LineSegment> lines;
+  for (int i = 0; i < count * 100 && static_cast<int>(lines.size()) < count; ++i) {
+    const Eigen::Vector3d p(x(rng), y(rng), z(rng));
+    Eigen::Vector3d q = p;
+    q[axis] += len(rng);
+    Eigen::Vector2d a, b;
+    if (!cam.project(p, a) || !cam.project(q, b)) continue;
+    auto inside = [&](const Eigen::Vector2d& v) { return v.x() >= 0 && v.y() >= 0 && v.x() < 640 && v.y() < 480; };
+    if (!inside(a) || !inside(b) || (a - b).norm() < 20) continue;
+    lines.push_back({a + Eigen::Vector2d(noise(rng), noise(rng)), b + Eigen::Vector2d(noise(rng), noise(rng))});
+  }
   return lines;
 }
 
@@ -106,6 +150,98 @@ TEST(Camera, FrontalViewFallsBackToTheFocalPrior) {
   EXPECT_LT(up_error_deg(est.R_world_from_cam, cam.R_world_from_cam), 1.0);
 }
 
+TEST(Camera, WideAngleNinetyDegreeViews) {
+  // 90-degree horizontal field of view: f = 320 px, 0.59 x the default prior
+  // (the hotel-room views at this width had come out up to 59% off).
+  for (const auto& [yaw, pitch] : {std::pair{35.0, -10.0}, {-50.0, -15.0}, {20.0, 8.0}}) {
+    const auto cam = make_camera(320, yaw, pitch);
+    const auto lines = manhattan_lines(cam, 30, 0.5, 11);
+    ASSERT_GE(lines.size(), 60u);
+    const CameraEstimate est = estimate_camera(lines, 640, 480);
+    expect_finite(est);
+    EXPECT_EQ(est.which, CameraCase::ThreeVanishingPoints) << est.report.why;
+    EXPECT_TRUE(est.focal_from_vanishing_points) << "yaw " << yaw;
+    EXPECT_NEAR(est.fx / 320.0, 1.0, 0.03) << "yaw " << yaw;
+    EXPECT_LT(up_error_deg(est.R_world_from_cam, cam.R_world_from_cam), 0.5) << "yaw " << yaw;
+    EXPECT_LT(axes_error_deg(est, cam), 0.5) << "yaw " << yaw;
+  }
+}
+
+TEST(Camera, StronglyTiltedAndRolledCameras) {
+  // Looking down 40 degrees, up 35, and rolled by 20: up must still be found
+  // (the nearest axis to the image's vertical is up below 45 degrees of tilt).
+  const std::tuple<double, double, double, double> views[] = {
+      {500, 30, -40, 0}, {450, -25, 35, 0}, {600, 40, -15, 20}, {520, -35, -30, -15}};
+  for (const auto& [f, yaw, pitch, roll] : views) {
+    const auto cam = rolled(make_camera(f, yaw, pitch), roll);
+    std::vector<LineSegment> lines;  // 20 per axis: a steep view sees few of one axis in the default room
+    for (int axis = 0; axis < 3; ++axis)
+      for (const auto& l : axis_lines(cam, axis, 20, 0.5, 5 + axis)) lines.push_back(l);
+    ASSERT_GE(lines.size(), 40u) << "pitch " << pitch;
+    const CameraEstimate est = estimate_camera(lines, 640, 480);
+    expect_finite(est);
+    EXPECT_EQ(est.which, CameraCase::ThreeVanishingPoints) << est.report.why << ", pitch " << pitch;
+    EXPECT_NEAR(est.fx / f, 1.0, 0.05) << "pitch " << pitch << ", roll " << roll;
+    EXPECT_LT(up_error_deg(est.R_world_from_cam, cam.R_world_from_cam), 0.5) << "pitch " << pitch << ", roll " << roll;
+  }
+}
+
+TEST(Camera, WideAngleWithOutliersAndARotatedBox) {
+  // A 90-degree view with 30% random segments and a box turned 30 degrees
+  // about the vertical (furniture off the room's axes): the room still wins.
+  const auto cam = make_camera(320, 30, -12);
+  auto lines = manhattan_lines(cam, 30, 0.5, 21);
+  render::PinholeCamera box = cam;
+  const Eigen::Matrix3d turn = Eigen::AngleAxisd(30 / kRadToDeg, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  box.R_world_from_cam = turn.transpose() * cam.R_world_from_cam;  // the box's axes seen by this camera
+  for (const auto& l : manhattan_lines(box, 8, 0.5, 22)) lines.push_back(l);
+  std::mt19937_64 rng(4);
+  std::uniform_real_distribution<double> px(0, 640), py(0, 480);
+  const size_t outliers = lines.size() * 3 / 7;
+  for (size_t i = 0; i < outliers; ++i) lines.push_back({{px(rng), py(rng)}, {px(rng), py(rng)}});
+  const CameraEstimate est = estimate_camera(lines, 640, 480);
+  expect_finite(est);
+  EXPECT_NEAR(est.fx / 320.0, 1.0, 0.05);
+  EXPECT_LT(axes_error_deg(est, cam), 1.0);
+}
+
+TEST(Camera, CalibratedLensGivesTheRotationOnly) {
+  // A board with a calibrated lens: prior_focal_px + fixed_focal.
+  const auto cam = make_camera(610, 25, -8);
+  const auto lines = manhattan_lines(cam, 25, 0.5, 3);
+  CameraOptions options;
+  options.prior_focal_px = 610;
+  options.fixed_focal = true;
+  const CameraEstimate est = estimate_camera(lines, 640, 480, options);
+  expect_finite(est);
+  EXPECT_DOUBLE_EQ(est.fx, 610);
+  EXPECT_FALSE(est.focal_from_vanishing_points);
+  EXPECT_LT(axes_error_deg(est, cam), 0.5);
+}
+
+TEST(Camera, ReportsPerLineLabelsAndIsDeterministic) {
+  const auto cam = make_camera(500, 30, -12);
+  auto lines = manhattan_lines(cam, 20, 0.5, 8);
+  lines.push_back({{std::nan(""), 1.0}, {5.0, 5.0}});  // dropped, labelled -1
+  const CameraEstimate a = estimate_camera(lines, 640, 480);
+  const CameraEstimate b = estimate_camera(lines, 640, 480);
+  ASSERT_EQ(a.line_labels.size(), lines.size());
+  EXPECT_EQ(a.line_labels.back(), -1);
+  EXPECT_EQ(a.line_labels, b.line_labels);
+  EXPECT_EQ(a.R_world_from_cam, b.R_world_from_cam);
+  EXPECT_EQ(a.fx, b.fx);
+  // Vertical segments are labelled world Y (the layout stage reads label 1).
+  int vertical_as_y = 0, vertical = 0;
+  for (size_t i = 0; i < lines.size() - 1; ++i) {
+    const Eigen::Vector2d d = (lines[i].b - lines[i].a).normalized();
+    if (std::abs(d.y()) < 0.98) continue;
+    ++vertical;
+    vertical_as_y += a.line_labels[i] == 1;
+  }
+  EXPECT_GT(vertical, 5);
+  EXPECT_GE(vertical_as_y, vertical - 1);
+}
+
 // Hard cases: each must give a finite, deterministic camera and say which case applied.
 TEST(CameraHardCases, NoLinesGivesALevelCameraWithThePriorFocal) {
   const CameraEstimate est = estimate_camera({}, 640, 480);
@@ -137,6 +273,46 @@ TEST(CameraHardCases, DegenerateSegmentsAndConcurrentLines) {
   expect_finite(estimate_camera(lines, 1, 1));
 }
 
+TEST(CameraHardCases, OneOrTwoLinesAndNaNCoordinates) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const std::vector<std::vector<LineSegment>> inputs = {
+      {{{10, 10}, {300, 40}}},
+      {{{10, 10}, {300, 40}}, {{50, 400}, {60, 100}}},
+      {{{nan, 10}, {300, 40}}, {{50, nan}, {60, 100}}, {{nan, nan}, {nan, nan}}},
+      {{{1e300, 0}, {-1e300, 1}}, {{std::numeric_limits<double>::infinity(), 0}, {0, 0}}}};
+  for (const auto& lines : inputs) {
+    const CameraEstimate est = estimate_camera(lines, 640, 480);
+    expect_finite(est);
+    EXPECT_FALSE(est.focal_from_vanishing_points);
+    EXPECT_DOUBLE_EQ(est.fx, 0.85 * 640);
+    EXPECT_EQ(est.line_labels.size(), lines.size());
+    EXPECT_TRUE(est.which == CameraCase::NoVanishingPoints || est.which == CameraCase::VerticalOnly ||
+                est.which == CameraCase::HorizontalOnly)
+        << est.report.why;
+  }
+}
+
+TEST(CameraHardCases, OnlyVerticalOrOnlyOneHorizontalDirection) {
+  const auto cam = make_camera(500, 25, -10);
+  // Verticals only: up is known, yaw is not.
+  CameraEstimate est = estimate_camera(axis_lines(cam, 1, 25, 0.3, 13), 640, 480);
+  expect_finite(est);
+  EXPECT_EQ(est.which, CameraCase::VerticalOnly) << est.report.why;
+  // The focal length is the prior (544 px, 9% long), which alone tilts the
+  // vertical vanishing point's direction by 0.9 degrees at this pitch.
+  EXPECT_LT(up_error_deg(est.R_world_from_cam, cam.R_world_from_cam), 1.5);
+  EXPECT_FALSE(est.focal_from_vanishing_points);
+  // World X lines only: no roll assumed, so up is the level direction
+  // orthogonal to X nearest the image's vertical.
+  est = estimate_camera(axis_lines(cam, 0, 25, 0.3, 14), 640, 480);
+  expect_finite(est);
+  EXPECT_EQ(est.which, CameraCase::HorizontalOnly) << est.report.why;
+  EXPECT_FALSE(est.focal_from_vanishing_points);
+  const Eigen::Vector3d x_true = cam.R_world_from_cam.row(0).transpose();
+  const Eigen::Vector3d up_est = est.R_world_from_cam.row(1).transpose();
+  EXPECT_NEAR(up_est.dot(x_true), 0.0, 0.02);  // up is orthogonal to the one direction seen
+}
+
 TEST(CameraHardCases, RejectsAnEmptyImageSize) {
   EXPECT_THROW(estimate_camera({}, 0, 480), std::invalid_argument);
 }
@@ -150,6 +326,26 @@ TEST(LinesCsv, ReadsRowsSkipsHeaderAndRejectsGarbage) {
   std::ofstream(path) << "1,2,3,4\nnot,a,line\n";
   EXPECT_THROW(read_lines_csv(path), std::runtime_error);
   EXPECT_THROW(read_lines_csv(path + ".missing"), std::runtime_error);
+}
+
+TEST(LinesNyu, ReadsHomogeneousEndpointsByHeaderName) {
+  const std::string path = ::testing::TempDir() + "/lsd_lines_0000.csv";
+  std::ofstream(path) << "line_hom_a line_hom_b line_hom_c centroid_x centroid_y centroid_z point1_x point1_y point1_z "
+                         "point2_x point2_y point2_z\n"
+                         "0 1 -5 2 5 1 1 5 1 3 5 1\n"
+                         "\n"
+                         "0 1 -5 2 5 1 20 10 2 30 10 1\n"
+                         "0 1 -5 2 5 1 4 4 1 4 4 1\n";  // zero length: dropped
+  const auto lines = read_lines_nyu(path);
+  ASSERT_EQ(lines.size(), 2u);
+  EXPECT_EQ(lines[0].a, Eigen::Vector2d(1, 5));
+  EXPECT_EQ(lines[1].a, Eigen::Vector2d(10, 5));  // homogeneous: divided by z
+  EXPECT_EQ(lines[1].b, Eigen::Vector2d(30, 10));
+  std::ofstream(path) << "x1 y1 x2 y2\n1 2 3 4\n";
+  EXPECT_THROW(read_lines_nyu(path), std::runtime_error);  // no point1_x column
+  std::ofstream(path) << "point1_x point1_y point2_x point2_y\n1 2 3\n";
+  EXPECT_THROW(read_lines_nyu(path), std::runtime_error);  // short row
+  EXPECT_THROW(read_lines_nyu(path + ".missing"), std::runtime_error);
 }
 
 }  // namespace

@@ -30,17 +30,40 @@ std::vector<LineSegment> detect_lines(const cv::Mat& photo_linear, const LineDet
 // Reads `x1,y1,x2,y2` rows (a header line and blank lines are skipped).
 std::vector<LineSegment> read_lines_csv(const std::string& path);
 
+// Reads the NYU-VP / YUD line tables of Kluger et al. (CONSAC): a header that
+// names space-separated columns, endpoints in point1_x point1_y point1_z and
+// point2_x point2_y point2_z (homogeneous, pixels, y down). Other columns are
+// ignored; rows with non-finite or coincident endpoints are dropped. Throws
+// std::runtime_error on a missing file, a header without those columns or a
+// short row.
+std::vector<LineSegment> read_lines_nyu(const std::string& path);
+
 struct CameraOptions {
-  double prior_focal_px = 0.0;   // 0: 0.85 * max(width, height), a typical 60-degree lens
-  int focal_hypotheses = 15;     // log-spaced over [0.4, 2.5] x prior
-  int ransac_iterations = 400;   // minimal samples per focal hypothesis
-  double inlier_angle_deg = 1.5; // line-to-direction consistency
-  int min_support_lines = 4;     // lines a vanishing direction needs to count
-  int max_refine_iterations = 50;
+  // Focal-length prior in pixels; 0: 0.85 * max(width, height), a typical
+  // 60-degree lens. It is the focal length whenever the lines cannot fix it
+  // (fewer than two finite vanishing points), it centres the search range
+  // [0.4, 2.5] x prior and it breaks near-ties. A board whose lens is
+  // calibrated passes its fx here (board calibration prior, e.g. the `fx` of
+  // an OpenCV calibrateCamera run at the capture resolution, scaled by the
+  // photo's width over the calibration width); with `fixed_focal` the stage
+  // then estimates the rotation only.
+  double prior_focal_px = 0.0;
+  bool fixed_focal = false;       // use the prior as the focal length (calibrated lens)
+  int ransac_iterations = 300;    // line pairs sampled (length-weighted) as vanishing-point candidates
+  int candidate_vps = 12;         // distinct best candidates kept; each pair of them is a Manhattan frame hypothesis
+  int focal_hypotheses = 7;       // log-spaced focal values tried for a pair that does not fix the focal length
+  double inlier_distance_px = 0;  // line-to-VP consistency (endpoint distance); 0: 0.25% of the image diagonal
+  int min_support_lines = 4;      // inlier lines a vanishing direction needs to count
+  int max_refine_iterations = 50; // per Ceres solve (at most two solves)
+  double max_refine_seconds = 0.5;
   uint64_t seed = 7;
 };
 
-enum class CameraCase { ThreeVanishingPoints, TwoVanishingPoints, VerticalOnly, NoVanishingPoints };
+// Which vanishing directions the lines support (>= min_support_lines inliers):
+// all three; two (the third follows); only the vertical (yaw unknown: world Z
+// faces the camera); only one horizontal (up: the level direction orthogonal
+// to it, i.e. no roll); none (a level camera).
+enum class CameraCase { ThreeVanishingPoints, TwoVanishingPoints, VerticalOnly, HorizontalOnly, NoVanishingPoints };
 const char* to_string(CameraCase c);
 
 struct CameraEstimate {
@@ -50,7 +73,7 @@ struct CameraEstimate {
   std::array<double, 3> support{};               // length-weighted inlier support per direction
   std::vector<int> line_labels;                  // per input line: 0,1,2 (world X,Y,Z) or -1
   CameraCase which = CameraCase::NoVanishingPoints;
-  bool focal_from_vanishing_points = false;
+  bool focal_from_vanishing_points = false;  // two supported finite vanishing points fixed fx; else the prior
   StageReport report;
 };
 
