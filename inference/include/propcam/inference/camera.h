@@ -51,7 +51,7 @@ struct CameraOptions {
   bool fixed_focal = false;       // use the prior as the focal length (calibrated lens)
   int ransac_iterations = 300;    // line pairs sampled (length-weighted) as vanishing-point candidates
   int candidate_vps = 12;         // distinct best candidates kept; each pair of them is a Manhattan frame hypothesis
-  int focal_hypotheses = 7;       // log-spaced focal values tried for a pair that does not fix the focal length
+  int focal_hypotheses = 11;      // log-spaced focal values tried for a pair that does not fix the focal length
   double inlier_distance_px = 0;  // line-to-VP consistency (endpoint distance); 0: 0.25% of the image diagonal
   int min_support_lines = 4;      // inlier lines a vanishing direction needs to count
   int max_refine_iterations = 50; // per Ceres solve (at most two solves)
