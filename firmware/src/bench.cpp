@@ -110,7 +110,7 @@ json run_bench(const BenchOptions& options) {
   result["stages"] = stages;
   result["inference_seconds"] = infer_seconds;
 
-  // Camera knob: RANSAC samples per focal hypothesis.
+  // Camera knob: line-pair samples (vanishing-point candidates).
   progress.stage("bench: camera sweep");
   inference::StageReport lines_report;
   const auto lines = inference::detect_lines(shot.photo_linear, {}, lines_report);
