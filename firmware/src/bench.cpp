@@ -170,7 +170,7 @@ json run_bench(const BenchOptions& options) {
   result["stages"] = stages;
   result["inference_seconds"] = infer_seconds;
 
-  // Camera knob: RANSAC samples per focal hypothesis.
+  // Camera knob: line-pair samples (vanishing-point candidates).
   progress.stage("bench: camera sweep");
   inference::StageReport lines_report;
   const auto lines = inference::detect_lines(shot.photo_linear, {}, lines_report);
@@ -241,7 +241,7 @@ std::string format_bench(const json& r) {
     out << line;
   }
   std::snprintf(line, sizeof line, "%-18s %8.3f\n\n", "inference total", r["inference_seconds"].get<double>());
-  out << line << "Camera: RANSAC samples per focal hypothesis\n  iterations  seconds  focal_err  up_err_deg\n";
+  out << line << "Camera: line-pair samples (RANSAC iterations)\n  iterations  seconds  focal_err  up_err_deg\n";
   for (const auto& s : r["sweeps"]["camera_ransac"]) {
     std::snprintf(line, sizeof line, "  %10d  %7.3f  %9.4f  %10.3f\n", s["ransac_iterations"].get<int>(),
                   s["seconds"].get<double>(), s["focal_rel_error"].get<double>(), s["up_error_deg"].get<double>());
@@ -281,7 +281,7 @@ void plot_bench(const json& r, const std::string& dir) {
         "'' using 2:3:1 with labels offset 1,1 notitle\n"
         "unset logscale y\nset logscale x\n"
         "set output '" << (d / "camera_ransac.png").string() << "'\n"
-        "set title 'Camera stage: focal error vs time (labels: RANSAC samples per focal hypothesis)'\n"
+        "set title 'Camera stage: focal error vs time (labels: line-pair samples)'\n"
         "set xlabel 'camera stage seconds'\nset ylabel 'relative focal error'\n"
         "plot '" << (d / "camera_ransac.dat").string() << "' using 2:3 with linespoints pt 7 title 'focal', "
         "'' using 2:3:1 with labels offset 1,1 notitle\n";

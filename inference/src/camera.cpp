@@ -57,7 +57,7 @@ constexpr double kCandidateSeparationDeg = 2.0;
 constexpr double kCoverageTolerance2 = 4.0;
 
 // Knob ceilings, so that any options stay bounded in time (the defaults are
-// 300, 12 and 7).
+// 300, 12 and 11).
 constexpr int kMaxSamples = 20000;
 constexpr int kMaxCandidates = 40;
 constexpr int kMaxFocalHypotheses = 25;

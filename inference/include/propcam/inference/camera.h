@@ -41,7 +41,7 @@ std::vector<LineSegment> read_lines_nyu(const std::string& path);
 struct CameraOptions {
   // Focal-length prior in pixels; 0: 0.85 * max(width, height), a typical
   // 60-degree lens. It is the focal length whenever the lines cannot fix it
-  // (fewer than two finite vanishing points), it centres the search range
+  // (see focal_from_vanishing_points), it centres the search range
   // [0.4, 2.5] x prior and it breaks near-ties. A board whose lens is
   // calibrated passes its fx here (board calibration prior, e.g. the `fx` of
   // an OpenCV calibrateCamera run at the capture resolution, scaled by the
@@ -51,11 +51,11 @@ struct CameraOptions {
   bool fixed_focal = false;       // use the prior as the focal length (calibrated lens)
   int ransac_iterations = 300;    // line pairs sampled (length-weighted) as vanishing-point candidates
   int candidate_vps = 12;         // distinct best candidates kept; each pair of them is a Manhattan frame hypothesis
-  int focal_hypotheses = 7;       // log-spaced focal values tried for a pair that does not fix the focal length
+  int focal_hypotheses = 11;      // log-spaced focal values tried for a pair that does not fix the focal length
   double inlier_distance_px = 0;  // line-to-VP consistency (endpoint distance); 0: 0.25% of the image diagonal
   int min_support_lines = 4;      // inlier lines a vanishing direction needs to count
-  int max_refine_iterations = 50; // per Ceres solve (at most two solves)
-  double max_refine_seconds = 0.5;
+  int max_refine_iterations = 50; // per Ceres solve (label, solve, relabel: at most three solves)
+  double max_refine_seconds = 0.5; // per Ceres solve
   uint64_t seed = 7;
 };
 
@@ -70,13 +70,20 @@ struct CameraEstimate {
   double fx = 0, fy = 0, cx = 0, cy = 0;
   Eigen::Matrix3d R_world_from_cam = Eigen::Matrix3d::Identity();
   std::array<Eigen::Vector3d, 3> directions_cam;  // world X, Y(up), Z in camera coordinates
-  std::array<double, 3> support{};               // length-weighted inlier support per direction
+  std::array<double, 3> support{};               // summed length (px) of each direction's inlier lines
   std::vector<int> line_labels;                  // per input line: 0,1,2 (world X,Y,Z) or -1
   CameraCase which = CameraCase::NoVanishingPoints;
-  bool focal_from_vanishing_points = false;  // two supported finite vanishing points fixed fx; else the prior
+  // fx came from the lines: all three directions supported, two vanishing
+  // points finite and the lines fix log(fx) to 8%. Otherwise fx is the prior.
+  bool focal_from_vanishing_points = false;
   StageReport report;
 };
 
+// The principal point is the image centre. Vanishing points are found in the
+// image (homogeneous: points at infinity are ordinary) and the frame refined
+// on endpoint distances; the method and its NYU-VP evaluation are in
+// inference/README.md. Deterministic for a seed, bounded in time, always
+// finite; throws std::invalid_argument for a non-positive size.
 CameraEstimate estimate_camera(const std::vector<LineSegment>& lines, int width, int height,
                                const CameraOptions& options = {});
 
