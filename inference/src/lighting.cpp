@@ -18,9 +18,6 @@ namespace {
 using Eigen::Vector3d;
 using Clock = std::chrono::steady_clock;
 
-// Shading below this (linear) is treated as this, so black pixels keep a finite albedo.
-constexpr double kMinShading = 1e-3;
-constexpr double kMaxAlbedo = 0.95;
 // Source quads are pulled this far toward the camera off the surface they were seen on.
 constexpr double kSourceStandOffM = 0.02;
 constexpr double kSaturatedLinear = 0.98;
@@ -41,18 +38,6 @@ cv::Mat luminance(const cv::Mat& rgb) {
   cv::Mat grey;
   cv::transform(rgb, grey, cv::Matx13f(0.2126f, 0.7152f, 0.0722f));
   return grey;
-}
-
-render::PinholeCamera scaled_camera(const render::PinholeCamera& cam, int width, int height) {
-  render::PinholeCamera out = cam;
-  const double sx = static_cast<double>(width) / cam.width, sy = static_cast<double>(height) / cam.height;
-  out.width = width;
-  out.height = height;
-  out.fx = cam.fx * sx;
-  out.fy = cam.fy * sy;
-  out.cx = (cam.cx + 0.5) * sx - 0.5;
-  out.cy = (cam.cy + 0.5) * sy - 0.5;
-  return out;
 }
 
 // Fits a one-sided quad to the 3D points of a source region (normal along
@@ -315,7 +300,7 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   start = Clock::now();
   const int fit_w = std::min(options.fit_width, camera.width);
   const int fit_h = std::max(1, static_cast<int>(std::lround(static_cast<double>(fit_w) * camera.height / camera.width)));
-  const render::PinholeCamera fit_camera = scaled_camera(camera, fit_w, fit_h);
+  const render::PinholeCamera fit_camera = camera.resized(fit_w, fit_h);
   cv::Mat fit_photo, fit_depth, fit_albedo, fit_mask;
   cv::resize(photo_linear, fit_photo, {fit_w, fit_h}, 0, 0, cv::INTER_AREA);
   cv::resize(depth, fit_depth, {fit_w, fit_h}, 0, 0, cv::INTER_NEAREST);

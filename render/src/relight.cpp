@@ -57,14 +57,7 @@ SceneLightLayers render_scene_light_layers(const Scene& scene, const PinholeCame
   SceneLightLayers out;
   width = std::clamp(width, 1, camera.width);
   const int height = std::max(1, static_cast<int>(std::lround(static_cast<double>(width) * camera.height / camera.width)));
-  PinholeCamera small = camera;
-  const double sx = static_cast<double>(width) / camera.width, sy = static_cast<double>(height) / camera.height;
-  small.width = width;
-  small.height = height;
-  small.fx *= sx;
-  small.fy *= sy;
-  small.cx = (camera.cx + 0.5) * sx - 0.5;
-  small.cy = (camera.cy + 0.5) * sy - 0.5;
+  const PinholeCamera small = camera.resized(width, height);
   // The empty scene is the background world: props are not traced.
   for (int i = 0; i < lights.count(); ++i) {
     const LightRig one = lights.only(i);

@@ -21,6 +21,18 @@ struct PinholeCamera {
   Eigen::Vector3d world_to_camera(const Eigen::Vector3d& p) const {
     return R_world_from_cam.transpose() * (p - center_world);
   }
+  // The same camera with a resized image (pixel centres stay on the same rays).
+  PinholeCamera resized(int new_width, int new_height) const {
+    PinholeCamera out = *this;
+    const double sx = static_cast<double>(new_width) / width, sy = static_cast<double>(new_height) / height;
+    out.width = new_width;
+    out.height = new_height;
+    out.fx = fx * sx;
+    out.fy = fy * sy;
+    out.cx = (cx + 0.5) * sx - 0.5;
+    out.cy = (cy + 0.5) * sy - 0.5;
+    return out;
+  }
   // Projects a world point; returns false if it lies behind the camera.
   bool project(const Eigen::Vector3d& p_world, Eigen::Vector2d& pixel) const {
     const Eigen::Vector3d pc = world_to_camera(p_world);
