@@ -1,0 +1,386 @@
+#include "propcam/inference/depth_solve.h"
+
+#include <ceres/ceres.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/ximgproc/edge_filter.hpp>
+
+#include "propcam/render/depth_mesh.h"
+
+namespace propcam::inference {
+namespace {
+
+using Eigen::Vector3d;
+
+// Depth the solve may reach: a hand's breadth to the far background. The
+// bounds keep log-depth finite whatever the targets say.
+constexpr double kMinDepthM = 0.05;
+constexpr double kMaxDepthM = 500.0;
+// Normals of near-degenerate triangles (three almost collinear points) are
+// not trusted: the length of the cross product is floored by this.
+constexpr double kNormalEpsilon = 1e-12;
+// Manhattan / orientation residuals are products of unit components (at most
+// 0.5): beyond this they are outliers (a real non-Manhattan object).
+constexpr double kNormalLossScale = 0.15;
+// A solve grid is never smaller than this per side (tiny photos still solve).
+constexpr int kMinGridSide = 2;
+
+struct Grid {
+  int w = 0, h = 0;
+  render::PinholeCamera camera;  // at the grid size
+  cv::Mat log_target;             // CV_32F combined data target (for the initial guess)
+  cv::Mat sky;                    // CV_8U
+  cv::Mat labels;                 // CV_8U or empty
+  std::vector<Vector3d> rays;     // world direction with camera z = 1 (depth scales it)
+};
+
+// Log-depth of a target resampled to the grid by area, ignoring pixels with
+// no opinion; `valid` (CV_32F) gets the fraction of the cell with an opinion
+// times the target's confidence.
+void resample_target(const DepthTarget& t, int w, int h, cv::Mat& log_depth, cv::Mat& valid) {
+  if (t.depth.empty() || t.depth.type() != CV_32F) throw std::invalid_argument("solve_depth: targets must be CV_32F depth maps");
+  if (!t.confidence.empty() && (t.confidence.type() != CV_32F || t.confidence.size() != t.depth.size()))
+    throw std::invalid_argument("solve_depth: a target's confidence must be CV_32F at its depth's size");
+  cv::Mat logd(t.depth.size(), CV_32F, 0.f), ok(t.depth.size(), CV_32F, 0.f);
+  for (int y = 0; y < t.depth.rows; ++y)
+    for (int x = 0; x < t.depth.cols; ++x) {
+      const float d = t.depth.at<float>(y, x);
+      if (!std::isfinite(d) || d <= 0) continue;
+      float c = t.confidence.empty() ? 1.f : t.confidence.at<float>(y, x);
+      if (!std::isfinite(c)) c = 0;
+      c = std::clamp(c, 0.f, 1.f);
+      const double clamped = std::clamp(static_cast<double>(d), kMinDepthM, kMaxDepthM);
+      logd.at<float>(y, x) = static_cast<float>(std::log(clamped)) * c;
+      ok.at<float>(y, x) = c;
+    }
+  cv::resize(logd, log_depth, cv::Size(w, h), 0, 0, cv::INTER_AREA);
+  cv::resize(ok, valid, cv::Size(w, h), 0, 0, cv::INTER_AREA);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const float v = valid.at<float>(y, x);
+      log_depth.at<float>(y, x) = v > 1e-4f ? log_depth.at<float>(y, x) / v : 0.f;
+    }
+}
+
+// World-frame normal of the triangle (P_i, P_right, P_down) from log-depths.
+template <typename T>
+Eigen::Matrix<T, 3, 1> triangle_normal(const T& zi, const T& zr, const T& zd, const Vector3d& ri, const Vector3d& rr,
+                                       const Vector3d& rd) {
+  const Eigen::Matrix<T, 3, 1> pi = ri.cast<T>() * exp(zi);
+  const Eigen::Matrix<T, 3, 1> pr = rr.cast<T>() * exp(zr);
+  const Eigen::Matrix<T, 3, 1> pd = rd.cast<T>() * exp(zd);
+  const Eigen::Matrix<T, 3, 1> n = (pr - pi).cross(pd - pi);
+  const T len = sqrt(n.squaredNorm() + T(kNormalEpsilon) * exp(T(2.0) * zi) * exp(T(2.0) * zi));
+  return n / len;
+}
+
+struct DataResidual {
+  double target, sqrt_weight;
+  template <typename T>
+  bool operator()(const T* z, T* r) const {
+    r[0] = T(sqrt_weight) * (z[0] - T(target));
+    return true;
+  }
+};
+
+struct ManhattanResidual {
+  Vector3d ri, rr, rd;
+  double sqrt_weight;
+  template <typename T>
+  bool operator()(const T* zi, const T* zr, const T* zd, T* r) const {
+    const auto n = triangle_normal(zi[0], zr[0], zd[0], ri, rr, rd);
+    r[0] = T(sqrt_weight) * n.x() * n.y();
+    r[1] = T(sqrt_weight) * n.y() * n.z();
+    r[2] = T(sqrt_weight) * n.x() * n.z();
+    return true;
+  }
+};
+
+struct OrientationResidual {
+  Vector3d ri, rr, rd;
+  int axis;  // 0,1,2: the normal should be along this world axis
+  double sqrt_weight;
+  template <typename T>
+  bool operator()(const T* zi, const T* zr, const T* zd, T* r) const {
+    const auto n = triangle_normal(zi[0], zr[0], zd[0], ri, rr, rd);
+    r[0] = T(sqrt_weight) * n((axis + 1) % 3);
+    r[1] = T(sqrt_weight) * n((axis + 2) % 3);
+    return true;
+  }
+};
+
+// Second difference of three consecutive 3D points, relative to the middle
+// depth: zero on any plane seen along a straight pixel row or column.
+struct SmoothnessResidual {
+  Vector3d ra, rb, rc;
+  double sqrt_weight;
+  template <typename T>
+  bool operator()(const T* za, const T* zb, const T* zc, T* r) const {
+    const T db = exp(zb[0]);
+    const Eigen::Matrix<T, 3, 1> d2 = ra.cast<T>() * exp(za[0]) - T(2.0) * rb.cast<T>() * db + rc.cast<T>() * exp(zc[0]);
+    for (int k = 0; k < 3; ++k) r[k] = T(sqrt_weight) * d2(k) / db;
+    return true;
+  }
+};
+
+Grid make_grid(const DepthProblem& p, const DepthSolveOptions& o, cv::Mat& target_sum, std::vector<cv::Mat>& logs,
+               std::vector<cv::Mat>& valids) {
+  Grid g;
+  g.w = std::max(kMinGridSide, std::min(o.width, p.camera.width));
+  g.h = std::max(kMinGridSide, static_cast<int>(std::lround(static_cast<double>(g.w) * p.camera.height / p.camera.width)));
+  g.camera = p.camera.resized(g.w, g.h);
+  g.rays.resize(static_cast<size_t>(g.w) * g.h);
+  for (int y = 0; y < g.h; ++y)
+    for (int x = 0; x < g.w; ++x)
+      g.rays[static_cast<size_t>(y) * g.w + x] =
+          g.camera.R_world_from_cam * Vector3d((x - g.camera.cx) / g.camera.fx, (y - g.camera.cy) / g.camera.fy, 1.0);
+  g.sky = cv::Mat(g.h, g.w, CV_8U, cv::Scalar(0));
+  if (!p.sky_mask.empty()) {
+    cv::Mat skyf;
+    p.sky_mask.convertTo(skyf, CV_32F, 1.0 / 255.0);
+    cv::threshold(skyf, skyf, 0.0, 1.0, cv::THRESH_BINARY);
+    cv::resize(skyf, skyf, cv::Size(g.w, g.h), 0, 0, cv::INTER_AREA);
+    g.sky = skyf > 0.5f;
+  }
+  if (!p.orientation_labels.empty())
+    cv::resize(p.orientation_labels, g.labels, cv::Size(g.w, g.h), 0, 0, cv::INTER_NEAREST);
+  // The initial guess: the weighted mean of the targets' log-depths.
+  cv::Mat num(g.h, g.w, CV_32F, 0.f);
+  target_sum = cv::Mat(g.h, g.w, CV_32F, 0.f);
+  for (const auto& t : p.targets) {
+    cv::Mat l, v;
+    resample_target(t, g.w, g.h, l, v);
+    const float w = static_cast<float>(std::max(0.0, t.weight));
+    num += l.mul(v) * w;
+    target_sum += v * w;
+    logs.push_back(l);
+    valids.push_back(v);
+  }
+  g.log_target = cv::Mat(g.h, g.w, CV_32F);
+  for (int y = 0; y < g.h; ++y)
+    for (int x = 0; x < g.w; ++x) {
+      const float s = target_sum.at<float>(y, x);
+      g.log_target.at<float>(y, x) = s > 1e-6f ? num.at<float>(y, x) / s : std::nanf("");
+    }
+  return g;
+}
+
+// Pixels no target speaks for take the median of those that do.
+double fill_initial_guess(cv::Mat& log_target, const cv::Mat& sky) {
+  std::vector<float> known;
+  for (int y = 0; y < log_target.rows; ++y)
+    for (int x = 0; x < log_target.cols; ++x)
+      if (!sky.at<uint8_t>(y, x) && std::isfinite(log_target.at<float>(y, x))) known.push_back(log_target.at<float>(y, x));
+  if (known.empty()) return std::nan("");
+  std::nth_element(known.begin(), known.begin() + known.size() / 2, known.end());
+  const float med = known[known.size() / 2];
+  for (int y = 0; y < log_target.rows; ++y)
+    for (int x = 0; x < log_target.cols; ++x)
+      if (!std::isfinite(log_target.at<float>(y, x))) log_target.at<float>(y, x) = med;
+  return med;
+}
+
+// Edge-aware upsampling: bilinear log-depth refined by a guided filter whose
+// guide is the photo's sRGB-ish luminance, so depth edges snap to image edges.
+cv::Mat upsample_log_depth(const cv::Mat& log_low, const cv::Size& size, const cv::Mat& guide_photo, double sigma_color) {
+  cv::Mat up;
+  cv::resize(log_low, up, size, 0, 0, cv::INTER_LINEAR);
+  if (guide_photo.empty() || log_low.cols >= size.width) return up;
+  cv::Mat gray;
+  cv::cvtColor(guide_photo, gray, cv::COLOR_RGB2GRAY);
+  cv::max(gray, 0.0, gray);
+  cv::pow(gray, 1.0 / 2.2, gray);
+  cv::min(gray, 1.0, gray);
+  const int radius = std::max(1, static_cast<int>(std::lround(static_cast<double>(size.width) / log_low.cols)));
+  cv::Mat out;
+  cv::ximgproc::guidedFilter(gray, up, out, radius, sigma_color * sigma_color);
+  return out;
+}
+
+}  // namespace
+
+cv::Mat normals_from_depth(const cv::Mat& depth, const render::PinholeCamera& camera) {
+  if (depth.type() != CV_32F || depth.cols != camera.width || depth.rows != camera.height)
+    throw std::invalid_argument("normals_from_depth: depth must be CV_32F at the camera's size");
+  cv::Mat normals(depth.size(), CV_32FC3);
+  auto point = [&](int x, int y) {
+    const double d = depth.at<float>(y, x);
+    return Vector3d((x - camera.cx) / camera.fx * d, (y - camera.cy) / camera.fy * d, d);
+  };
+  for (int y = 0; y < depth.rows; ++y)
+    for (int x = 0; x < depth.cols; ++x) {
+      const int x0 = std::max(0, x - 1), x1 = std::min(depth.cols - 1, x + 1);
+      const int y0 = std::max(0, y - 1), y1 = std::min(depth.rows - 1, y + 1);
+      Vector3d n_cam = -point(x, y).normalized();
+      if (x1 > x0 && y1 > y0) {
+        Vector3d n = (point(x1, y) - point(x0, y)).cross(point(x, y1) - point(x, y0));
+        if (n.norm() > kNormalEpsilon && n.allFinite()) {
+          n.normalize();
+          // Face the camera.
+          if (n.dot(point(x, y)) > 0) n = -n;
+          n_cam = n;
+        }
+      }
+      if (!n_cam.allFinite()) n_cam = Vector3d(0, 0, -1);
+      const Vector3d nw = camera.R_world_from_cam * n_cam;
+      normals.at<cv::Vec3f>(y, x) = cv::Vec3f(static_cast<float>(nw.x()), static_cast<float>(nw.y()), static_cast<float>(nw.z()));
+    }
+  return normals;
+}
+
+DepthSolution solve_depth(const DepthProblem& p, const DepthSolveOptions& o) {
+  const auto start = std::chrono::steady_clock::now();
+  if (p.camera.width <= 0 || p.camera.height <= 0) throw std::invalid_argument("solve_depth: empty camera");
+  if (!p.sky_mask.empty() && (p.sky_mask.type() != CV_8U || p.sky_mask.size() != cv::Size(p.camera.width, p.camera.height)))
+    throw std::invalid_argument("solve_depth: the sky mask must be CV_8U at the camera's size");
+  if (!p.orientation_labels.empty() && p.orientation_labels.type() != CV_8U)
+    throw std::invalid_argument("solve_depth: orientation labels must be CV_8U");
+  if (!p.guide_photo.empty() && (p.guide_photo.type() != CV_32FC3 || p.guide_photo.size() != cv::Size(p.camera.width, p.camera.height)))
+    throw std::invalid_argument("solve_depth: the guide photo must be CV_32FC3 at the camera's size");
+  if (p.targets.empty()) throw std::invalid_argument("solve_depth: no depth target");
+  if (o.width < 1 || o.max_iterations < 0 || !(o.max_seconds > 0)) throw std::invalid_argument("solve_depth: bad options");
+
+  cv::Mat target_sum;
+  std::vector<cv::Mat> logs, valids;
+  Grid g = make_grid(p, o, target_sum, logs, valids);
+  const bool any_solved = cv::countNonZero(g.sky == 0) > 0;
+  const double median_log = fill_initial_guess(g.log_target, g.sky);
+  if (any_solved && !std::isfinite(median_log))
+    throw std::invalid_argument("solve_depth: no target gives a depth for any non-sky pixel");
+
+  const int n = g.w * g.h;
+  std::vector<double> z(static_cast<size_t>(n));
+  for (int i = 0; i < n; ++i) z[i] = g.log_target.at<float>(i / g.w, i % g.w);
+  auto solved = [&](int x, int y) { return x >= 0 && y >= 0 && x < g.w && y < g.h && !g.sky.at<uint8_t>(y, x); };
+  auto idx = [&](int x, int y) { return y * g.w + x; };
+
+  ceres::Problem problem;
+  ceres::Problem::Options unused;
+  (void)unused;
+  int data_terms = 0, manhattan_terms = 0, orientation_terms = 0, smooth_terms = 0;
+  for (int y = 0; y < g.h; ++y)
+    for (int x = 0; x < g.w; ++x) {
+      if (!solved(x, y)) continue;
+      double* zi = &z[idx(x, y)];
+      problem.AddParameterBlock(zi, 1);
+      problem.SetParameterLowerBound(zi, 0, std::log(kMinDepthM));
+      problem.SetParameterUpperBound(zi, 0, std::log(kMaxDepthM));
+      for (size_t t = 0; t < p.targets.size(); ++t) {
+        const double v = valids[t].at<float>(y, x) * std::max(0.0, p.targets[t].weight);
+        if (v <= 1e-6) continue;
+        problem.AddResidualBlock(new ceres::AutoDiffCostFunction<DataResidual, 1, 1>(
+                                     new DataResidual{logs[t].at<float>(y, x), std::sqrt(v)}),
+                                 new ceres::SoftLOneLoss(o.data_scale), zi);
+        ++data_terms;
+      }
+      const Vector3d& ri = g.rays[idx(x, y)];
+      if (solved(x + 1, y) && solved(x, y + 1)) {
+        double* zr = &z[idx(x + 1, y)];
+        double* zd = &z[idx(x, y + 1)];
+        const Vector3d& rr = g.rays[idx(x + 1, y)];
+        const Vector3d& rd = g.rays[idx(x, y + 1)];
+        if (o.use_manhattan && o.weights.manhattan > 0) {
+          problem.AddResidualBlock(new ceres::AutoDiffCostFunction<ManhattanResidual, 3, 1, 1, 1>(
+                                       new ManhattanResidual{ri, rr, rd, std::sqrt(o.weights.manhattan)}),
+                                   new ceres::CauchyLoss(kNormalLossScale * std::sqrt(o.weights.manhattan)), zi, zr, zd);
+          ++manhattan_terms;
+        }
+        const int label = g.labels.empty() ? 0 : g.labels.at<uint8_t>(y, x);
+        if (o.use_orientation && o.weights.orientation > 0 && label >= 1 && label <= 3) {
+          problem.AddResidualBlock(new ceres::AutoDiffCostFunction<OrientationResidual, 2, 1, 1, 1>(
+                                       new OrientationResidual{ri, rr, rd, label - 1, std::sqrt(o.weights.orientation)}),
+                                   new ceres::CauchyLoss(kNormalLossScale * std::sqrt(o.weights.orientation)), zi, zr, zd);
+          ++orientation_terms;
+        }
+      }
+      if (o.use_smoothness && o.weights.smoothness > 0) {
+        const double sw = std::sqrt(o.weights.smoothness);
+        if (solved(x - 1, y) && solved(x + 1, y)) {
+          problem.AddResidualBlock(new ceres::AutoDiffCostFunction<SmoothnessResidual, 3, 1, 1, 1>(
+                                       new SmoothnessResidual{g.rays[idx(x - 1, y)], ri, g.rays[idx(x + 1, y)], sw}),
+                                   new ceres::CauchyLoss(o.smoothness_scale * sw), &z[idx(x - 1, y)], zi, &z[idx(x + 1, y)]);
+          ++smooth_terms;
+        }
+        if (solved(x, y - 1) && solved(x, y + 1)) {
+          problem.AddResidualBlock(new ceres::AutoDiffCostFunction<SmoothnessResidual, 3, 1, 1, 1>(
+                                       new SmoothnessResidual{g.rays[idx(x, y - 1)], ri, g.rays[idx(x, y + 1)], sw}),
+                                   new ceres::CauchyLoss(o.smoothness_scale * sw), &z[idx(x, y - 1)], zi, &z[idx(x, y + 1)]);
+          ++smooth_terms;
+        }
+      }
+    }
+
+  ceres::Solver::Summary summary;
+  if (problem.NumResidualBlocks() > 0 && o.max_iterations > 0) {
+    ceres::Solver::Options so;
+    so.linear_solver_type = ceres::CGNR;
+    so.max_linear_solver_iterations = 20;
+    so.max_num_iterations = o.max_iterations;
+    so.max_solver_time_in_seconds = o.max_seconds;
+    so.num_threads = std::max(1, o.num_threads);
+    so.function_tolerance = 1e-6;
+    so.logging_type = ceres::SILENT;
+    ceres::Solve(so, &problem, &summary);
+  }
+
+  // Back to depth: the solved grid, then edge-aware to full size.
+  DepthSolution s;
+  s.depth_low = cv::Mat(g.h, g.w, CV_32F);
+  cv::Mat log_low(g.h, g.w, CV_32F);
+  for (int y = 0; y < g.h; ++y)
+    for (int x = 0; x < g.w; ++x) {
+      double v = z[idx(x, y)];
+      if (!std::isfinite(v)) v = std::isfinite(median_log) ? median_log : 0.0;
+      v = std::clamp(v, std::log(kMinDepthM), std::log(kMaxDepthM));
+      log_low.at<float>(y, x) = static_cast<float>(v);
+      s.depth_low.at<float>(y, x) = g.sky.at<uint8_t>(y, x) ? static_cast<float>(render::kSkyDepthM) : static_cast<float>(std::exp(v));
+    }
+  const cv::Size full(p.camera.width, p.camera.height);
+  cv::Mat log_full = upsample_log_depth(log_low, full, p.guide_photo, o.guide_sigma_color);
+  s.depth = cv::Mat(full, CV_32F);
+  for (int y = 0; y < full.height; ++y)
+    for (int x = 0; x < full.width; ++x) {
+      float v = log_full.at<float>(y, x);
+      if (!std::isfinite(v)) v = static_cast<float>(std::isfinite(median_log) ? median_log : 0.0);
+      s.depth.at<float>(y, x) = std::clamp(std::exp(v), static_cast<float>(kMinDepthM), static_cast<float>(kMaxDepthM));
+    }
+  s.normals = normals_from_depth(s.depth, p.camera);
+  if (!p.sky_mask.empty())
+    for (int y = 0; y < full.height; ++y)
+      for (int x = 0; x < full.width; ++x)
+        if (p.sky_mask.at<uint8_t>(y, x)) {
+          s.depth.at<float>(y, x) = static_cast<float>(render::kSkyDepthM);
+          const Vector3d d = -p.camera.ray_direction(x, y);
+          s.normals.at<cv::Vec3f>(y, x) = cv::Vec3f(static_cast<float>(d.x()), static_cast<float>(d.y()), static_cast<float>(d.z()));
+        }
+
+  StageReport& r = s.report;
+  r.stage = "depth";
+  r.usable = true;
+  const bool converged = summary.termination_type == ceres::CONVERGENCE;
+  r.why = problem.NumResidualBlocks() == 0 ? "nothing to solve (all sky)"
+          : o.max_iterations == 0          ? "targets only (0 iterations)"
+          : converged                      ? "converged"
+                                           : std::string("stopped: ") + summary.message;
+  r.iterations = static_cast<int>(summary.iterations.size());
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  r.error = summary.final_cost;
+  r.details = {{"grid", {g.w, g.h}},
+               {"initial_cost", summary.initial_cost},
+               {"final_cost", summary.final_cost},
+               {"converged", converged},
+               {"solve_seconds", summary.total_time_in_seconds},
+               {"linear_solver_seconds", summary.linear_solver_time_in_seconds},
+               {"jacobian_seconds", summary.jacobian_evaluation_time_in_seconds},
+               {"terms", {{"data", data_terms}, {"manhattan", manhattan_terms}, {"orientation", orientation_terms},
+                          {"smoothness", smooth_terms}}},
+               {"weights", {o.use_manhattan ? o.weights.manhattan : 0.0, o.use_orientation ? o.weights.orientation : 0.0,
+                            o.use_smoothness ? o.weights.smoothness : 0.0}}};
+  return s;
+}
+
+}  // namespace propcam::inference
