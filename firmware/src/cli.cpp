@@ -254,6 +254,10 @@ int cmd_composite(const CompositeArgs& a) {
                   {"rays", st.rays},
                   {"samples_untouched_by_prop", skipped},
                   {"plan", plan},
+                  {"insertion_constraint", {{"applied", result.flattening.applied},
+                                            {"plane_height_m", result.flattening.plane_height_m},
+                                            {"pixels", result.flattening.pixels_changed},
+                                            {"why", result.flattening.why}}},
                   {"depth_of_field", dof_json},
                   {"total_seconds", progress.elapsed()}};
   if (a.json_out) std::cout << summary.dump(2) << std::endl;

@@ -46,7 +46,17 @@ CompositeWorld build_composite_world(const inference::SceneModel& scene, const r
   w.camera = scene.camera();
   w.scene = std::make_unique<render::Scene>();
   render::Scene& world = *w.scene;
-  world.add_mesh(render::mesh_from_depth(scene.depth, scene.albedo, w.camera), render::Layer::Background);
+  // The paper's insertion constraint: the prop's base stands on a flat patch.
+  w.depth = scene.depth.clone();
+  if (!scene.normals.empty() && scene.normals.size() == scene.depth.size()) {
+    cv::Mat normals = scene.normals.clone();
+    const Eigen::Vector3f size = prop.bounds().sizes();
+    const double scale = placement.height_m > 0 && size.y() > 0 ? placement.height_m / size.y() : 1.0;
+    const double footprint_radius_m = 0.5 * scale * std::max(size.x(), size.z());
+    w.flattening = inference::flatten_insertion_region(w.depth, normals, w.camera, scene.planes, placement.pixel_u,
+                                                       placement.pixel_v, footprint_radius_m);
+  }
+  world.add_mesh(render::mesh_from_depth(w.depth, scene.albedo, w.camera), render::Layer::Background);
 
   // The prop is an instance: the background's BVH is built once, placement
   // looks at the background alone, and then the prop is moved into place.
@@ -73,6 +83,7 @@ CompositeResult composite_prop(const cv::Mat& photo_linear, const inference::Sce
   CompositeResult result;
   result.placed = w.placed;
   result.scene_build_seconds = w.build_seconds;
+  result.flattening = w.flattening;
   result.plan = render::plan_transport(world, lights, settings, options.plan);
   render::SessionSettings session_settings;
   session_settings.render = result.plan.settings;
@@ -98,7 +109,7 @@ CompositeResult composite_prop(const cv::Mat& photo_linear, const inference::Sce
     result.scene_layers = render::render_scene_light_layers(world, camera, lights, options.scene_layers_width, low);
   }
   // Depth of the composite: the scene's, with the prop's where it is seen.
-  result.depth = scene.depth.clone();
+  result.depth = w.depth.clone();
   const render::PrimaryBuffers primary = render::render_primary_buffers(world, camera, true);
   primary.depth.copyTo(result.depth, primary.prop_coverage);
   return result;

@@ -10,6 +10,7 @@
 #include "propcam/inference/scene_model.h"
 #include "propcam/render/mesh.h"
 #include "propcam/render/path_tracer.h"
+#include "propcam/inference/support_planes.h"
 #include "propcam/render/placement.h"
 #include "propcam/render/render_session.h"
 #include "propcam/render/transport_plan.h"
@@ -37,6 +38,8 @@ struct CompositeWorld {
   int prop_index = -1;  // the prop's instance in `scene` (set_prop_transform moves it)
   Eigen::AlignedBox3f prop_bounds;
   double build_seconds = 0.0;  // depth mesh, placement and acceleration structures
+  cv::Mat depth;               // the scene's depth with the insertion constraint applied
+  inference::InsertionFlattening flattening;
 };
 
 // Throws std::invalid_argument as place_prop does (pixel outside, no support).
@@ -64,6 +67,7 @@ struct CompositeResult {
   render::TransportPlan plan;
   render::LightLayers layers;              // with options.light_layers
   render::SceneLightLayers scene_layers;   // with options.scene_layers_width > 0
+  inference::InsertionFlattening flattening;  // the insertion constraint around the prop's base
   cv::Mat depth;  // CV_32F metres along camera z of what each pixel sees, the prop included (for depth of field)
 };
 

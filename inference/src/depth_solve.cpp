@@ -184,18 +184,20 @@ double fill_initial_guess(cv::Mat& log_target, const cv::Mat& sky) {
   return med;
 }
 
-// Edge-aware upsampling: bilinear log-depth refined by a guided filter whose
-// guide is the photo's sRGB-ish luminance, so depth edges snap to image edges.
-cv::Mat upsample_log_depth(const cv::Mat& log_low, const cv::Size& size, const cv::Mat& guide_photo, double sigma_color) {
+// Edge-aware upsampling in inverse depth, which is affine in the image over
+// any plane, so bilinear interpolation keeps floors and walls exactly planar;
+// a guided filter (guide: the photo's gamma-encoded luminance) then snaps
+// depth edges to image edges.
+cv::Mat upsample_inverse_depth(const cv::Mat& inv_low, const cv::Size& size, const cv::Mat& guide_photo, double sigma_color) {
   cv::Mat up;
-  cv::resize(log_low, up, size, 0, 0, cv::INTER_LINEAR);
-  if (guide_photo.empty() || log_low.cols >= size.width) return up;
+  cv::resize(inv_low, up, size, 0, 0, cv::INTER_LINEAR);
+  if (guide_photo.empty() || inv_low.cols >= size.width) return up;
   cv::Mat gray;
   cv::cvtColor(guide_photo, gray, cv::COLOR_RGB2GRAY);
   cv::max(gray, 0.0, gray);
   cv::pow(gray, 1.0 / 2.2, gray);
   cv::min(gray, 1.0, gray);
-  const int radius = std::max(1, static_cast<int>(std::lround(static_cast<double>(size.width) / log_low.cols)));
+  const int radius = std::max(1, static_cast<int>(std::lround(static_cast<double>(size.width) / inv_low.cols)));
   cv::Mat out;
   cv::ximgproc::guidedFilter(gray, up, out, radius, sigma_color * sigma_color);
   return out;
@@ -330,23 +332,23 @@ DepthSolution solve_depth(const DepthProblem& p, const DepthSolveOptions& o) {
   // Back to depth: the solved grid, then edge-aware to full size.
   DepthSolution s;
   s.depth_low = cv::Mat(g.h, g.w, CV_32F);
-  cv::Mat log_low(g.h, g.w, CV_32F);
+  cv::Mat inv_low(g.h, g.w, CV_32F);
   for (int y = 0; y < g.h; ++y)
     for (int x = 0; x < g.w; ++x) {
       double v = z[idx(x, y)];
       if (!std::isfinite(v)) v = std::isfinite(median_log) ? median_log : 0.0;
       v = std::clamp(v, std::log(kMinDepthM), std::log(kMaxDepthM));
-      log_low.at<float>(y, x) = static_cast<float>(v);
+      inv_low.at<float>(y, x) = static_cast<float>(std::exp(-v));
       s.depth_low.at<float>(y, x) = g.sky.at<uint8_t>(y, x) ? static_cast<float>(render::kSkyDepthM) : static_cast<float>(std::exp(v));
     }
   const cv::Size full(p.camera.width, p.camera.height);
-  cv::Mat log_full = upsample_log_depth(log_low, full, p.guide_photo, o.guide_sigma_color);
+  cv::Mat inv_full = upsample_inverse_depth(inv_low, full, p.guide_photo, o.guide_sigma_color);
   s.depth = cv::Mat(full, CV_32F);
   for (int y = 0; y < full.height; ++y)
     for (int x = 0; x < full.width; ++x) {
-      float v = log_full.at<float>(y, x);
-      if (!std::isfinite(v)) v = static_cast<float>(std::isfinite(median_log) ? median_log : 0.0);
-      s.depth.at<float>(y, x) = std::clamp(std::exp(v), static_cast<float>(kMinDepthM), static_cast<float>(kMaxDepthM));
+      const float inv = inv_full.at<float>(y, x);
+      const float d = std::isfinite(inv) && inv > 0 ? 1.f / inv : static_cast<float>(std::exp(std::isfinite(median_log) ? median_log : 0.0));
+      s.depth.at<float>(y, x) = std::clamp(d, static_cast<float>(kMinDepthM), static_cast<float>(kMaxDepthM));
     }
   s.normals = normals_from_depth(s.depth, p.camera);
   if (!p.sky_mask.empty())

@@ -2,81 +2,130 @@
 
 #include <stdexcept>
 
-#include "propcam/inference/sky.h"
 
 namespace propcam::inference {
+namespace {
 
-SceneModel infer_scene(const cv::Mat& photo_linear, const InferenceOptions& options) {
-  if (photo_linear.empty() || photo_linear.type() != CV_32FC3)
+void check_photo(const cv::Mat& photo, const InferenceOptions& options) {
+  if (photo.empty() || photo.type() != CV_32FC3)
     throw std::invalid_argument("infer_scene: the photo must be a non-empty linear RGB image");
-  if (photo_linear.cols < kMinPhotoSide || photo_linear.rows < kMinPhotoSide)
-    throw std::invalid_argument("infer_scene: the photo is " + std::to_string(photo_linear.cols) + "x" +
-                                std::to_string(photo_linear.rows) + "; at least " + std::to_string(kMinPhotoSide) +
+  if (photo.cols < kMinPhotoSide || photo.rows < kMinPhotoSide)
+    throw std::invalid_argument("infer_scene: the photo is " + std::to_string(photo.cols) + "x" +
+                                std::to_string(photo.rows) + "; at least " + std::to_string(kMinPhotoSide) +
                                 " pixels per side are needed");
   if (!(options.camera_height_m > 0)) throw std::invalid_argument("infer_scene: camera height must be positive");
+}
+
+render::PinholeCamera pinhole_from(const CameraEstimate& cam, int width, int height, double camera_height_m) {
+  SceneModel s;
+  s.width = width;
+  s.height = height;
+  s.fx = cam.fx;
+  s.fy = cam.fy;
+  s.cx = cam.cx;
+  s.cy = cam.cy;
+  s.R_world_from_cam = cam.R_world_from_cam;
+  s.camera_height_m = camera_height_m;
+  return s.camera();
+}
+
+}  // namespace
+
+GeometryEstimate infer_geometry(const cv::Mat& photo, const InferenceOptions& options) {
+  check_photo(photo, options);
   auto stage = [&](const char* name) {
     if (options.on_stage) options.on_stage(name);
   };
+  GeometryEstimate g;
+  stage("lines");
+  StageReport lines_report;
+  if (options.given_lines) {
+    g.lines = *options.given_lines;
+    lines_report.stage = "lines";
+    lines_report.why = std::to_string(g.lines.size()) + " segments given";
+    lines_report.usable = !g.lines.empty();
+  } else {
+    g.lines = detect_lines(photo, options.lines, lines_report);
+  }
+  g.reports.push_back(lines_report);
+
+  stage("camera");
+  g.camera = estimate_camera(g.lines, photo.cols, photo.rows, options.camera);
+  g.reports.push_back(g.camera.report);
+  g.pinhole = pinhole_from(g.camera, photo.cols, photo.rows, options.camera_height_m);
+  StageReport height_report;
+  height_report.stage = "camera_height";
+  height_report.why = "prior (board configuration)";
+  height_report.details = {{"metres", options.camera_height_m}};
+  g.reports.push_back(height_report);
+
+  stage("scene_class");
+  StageReport class_report;
+  g.indoor = classify_indoor(photo, g.pinhole, class_report, &g.sky);
+  g.reports.push_back(class_report);
+  if (!g.indoor) g.sky_mask = g.sky.mask;
+
+  stage("geometry");
+  g.layout = estimate_layout(g.pinhole, g.lines, g.camera.line_labels, g.indoor, options.layout, g.sky_mask);
+  g.reports.push_back(g.layout.report);
+  g.depth = g.layout.depth;
+  g.normals = g.layout.normals;
+  if (options.geometry.solve) {
+    stage("depth");
+    DepthProblem problem;
+    problem.camera = g.pinhole;
+    problem.targets.push_back({g.layout.depth, options.geometry.box_weight, {}});
+    problem.sky_mask = g.sky_mask;
+    problem.guide_photo = photo;
+    DepthSolveOptions solver = options.geometry.solver;
+    if (options.geometry.class_weights) solver.weights = g.indoor ? DepthPriorWeights::indoor() : DepthPriorWeights::outdoor();
+    DepthSolution depth = solve_depth(problem, solver);
+    g.depth = depth.depth;
+    g.normals = depth.normals;
+    g.reports.push_back(depth.report);
+  }
+  // Support surfaces from the final depth; the layout's walls and ceiling
+  // stay as unbounded planes (the lighting stage hangs hypotheses on them).
+  StageReport support_report;
+  g.planes = find_support_planes(g.depth, g.normals, g.pinhole, options.geometry.support, support_report);
+  g.reports.push_back(support_report);
+  for (const auto& p : g.layout.planes)
+    if (p.name != "floor") g.planes.push_back(p);
+  return g;
+}
+
+SceneModel infer_scene(const cv::Mat& photo_linear, const InferenceOptions& options) {
+  check_photo(photo_linear, options);
   // NaN becomes 0 and infinities a bright but finite radiance, so no stage sees them.
   cv::Mat photo = photo_linear.clone();
   cv::patchNaNs(photo, 0.0);
   photo = cv::min(cv::max(photo, 0.0), kMaxPhotoRadiance);
 
+  GeometryEstimate g = infer_geometry(photo, options);
   SceneModel scene;
   scene.width = photo.cols;
   scene.height = photo.rows;
   scene.camera_height_m = options.camera_height_m;
+  scene.fx = g.camera.fx;
+  scene.fy = g.camera.fy;
+  scene.cx = g.camera.cx;
+  scene.cy = g.camera.cy;
+  scene.R_world_from_cam = g.camera.R_world_from_cam;
+  scene.indoor = g.indoor;
+  scene.depth = g.depth;
+  scene.normals = g.normals;
+  scene.planes = g.planes;
+  scene.reports = g.reports;
+  const render::PinholeCamera& camera = g.pinhole;
 
-  stage("lines");
-  StageReport lines_report;
-  std::vector<LineSegment> lines;
-  if (options.given_lines) {
-    lines = *options.given_lines;
-    lines_report.stage = "lines";
-    lines_report.why = std::to_string(lines.size()) + " segments given";
-    lines_report.usable = !lines.empty();
-  } else {
-    lines = detect_lines(photo, options.lines, lines_report);
-  }
-  scene.reports.push_back(lines_report);
-
-  stage("camera");
-  const CameraEstimate cam = estimate_camera(lines, photo.cols, photo.rows, options.camera);
-  scene.fx = cam.fx;
-  scene.fy = cam.fy;
-  scene.cx = cam.cx;
-  scene.cy = cam.cy;
-  scene.R_world_from_cam = cam.R_world_from_cam;
-  scene.reports.push_back(cam.report);
-  StageReport height_report;
-  height_report.stage = "camera_height";
-  height_report.why = "prior (board configuration)";
-  height_report.details = {{"metres", options.camera_height_m}};
-  scene.reports.push_back(height_report);
-
-  stage("scene_class");
-  StageReport class_report;
-  SkyEstimate sky;
-  scene.indoor = classify_indoor(photo, scene.camera(), class_report, &sky);
-  scene.reports.push_back(class_report);
-
-  stage("geometry");
-  const render::PinholeCamera camera = scene.camera();
-  Layout layout = estimate_layout(camera, lines, cam.line_labels, scene.indoor, options.layout,
-                                  scene.indoor ? cv::Mat() : sky.mask);
-  scene.depth = layout.depth;
-  scene.normals = layout.normals;
-  scene.planes = layout.planes;
-  scene.reports.push_back(layout.report);
-
-  stage("albedo");
+  if (options.on_stage) options.on_stage("albedo");
   StageReport albedo_report;
   scene.albedo = estimate_albedo(photo, options.albedo, albedo_report);
   scene.reports.push_back(albedo_report);
 
-  stage("lighting");
+  if (options.on_stage) options.on_stage("lighting");
   LightingEstimate lighting = estimate_lighting(photo, scene.depth, scene.albedo, camera, scene.planes, scene.indoor,
-                                                options.lighting, scene.indoor ? nullptr : &sky);
+                                                options.lighting, scene.indoor ? nullptr : &g.sky);
   scene.lights = std::move(lighting.lights);
   for (auto& r : lighting.reports) scene.reports.push_back(std::move(r));
   scene.gamma = 2.2;  // photos are linearised with the sRGB curve; fitting it is a later issue

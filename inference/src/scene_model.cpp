@@ -140,7 +140,15 @@ void save_scene(const SceneModel& scene, const std::string& folder) {
   }
   j["lights"] = lights;
   json planes = json::array();
-  for (const auto& p : scene.planes) planes.push_back({{"name", p.name}, {"normal", vec(p.normal)}, {"offset", p.offset}});
+  for (const auto& p : scene.planes) {
+    json pj = {{"name", p.name}, {"normal", vec(p.normal)}, {"offset", p.offset}};
+    if (p.pixels > 0) {
+      pj["extent_min"] = vec(p.extent_min);
+      pj["extent_max"] = vec(p.extent_max);
+      pj["pixels"] = p.pixels;
+    }
+    planes.push_back(pj);
+  }
   j["planes"] = planes;
   json reports = json::array();
   for (const auto& r : scene.reports) reports.push_back(to_json(r));
@@ -203,8 +211,16 @@ SceneModel load_scene(const std::string& folder) {
       }
       s.lights.push_back(l);
     }
-    for (const json& pj : j.value("planes", json::array()))
-      s.planes.push_back({pj.at("name"), vec3(pj.at("normal"), "normal"), pj.at("offset")});
+    for (const json& pj : j.value("planes", json::array())) {
+      SupportPlane p{pj.at("name"), vec3(pj.at("normal"), "normal"), pj.at("offset")};
+      if (pj.contains("pixels")) {
+        p.pixels = pj.at("pixels");
+        p.extent_min = vec3(pj.at("extent_min"), "extent_min");
+        p.extent_max = vec3(pj.at("extent_max"), "extent_max");
+        if (p.pixels < 0) throw std::runtime_error("a plane's pixel count is negative");
+      }
+      s.planes.push_back(p);
+    }
     for (const json& rj : j.value("reports", json::array())) {
       StageReport r;
       r.stage = rj.value("stage", "");

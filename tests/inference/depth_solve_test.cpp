@@ -6,30 +6,10 @@
 
 #include "propcam/inference/depth_solve.h"
 #include "propcam/render/depth_mesh.h"
-#include "propcam/render/path_tracer.h"
-#include "propcam/render/scene.h"
-#include "propcam/render/synthetic_room.h"
+#include "room_truth.h"
 
 namespace propcam::inference {
 namespace {
-
-struct RoomTruth {
-  render::PinholeCamera camera;
-  cv::Mat depth, normals;
-};
-
-RoomTruth room_truth(uint64_t seed, int w, int h) {
-  render::SyntheticRoomSpec spec;
-  spec.width = w;
-  spec.height = h;
-  spec.seed = seed;
-  const render::SyntheticRoom room = render::make_synthetic_room(spec);
-  render::Scene scene;
-  scene.add_mesh(room.room, render::Layer::Background);
-  scene.commit();
-  const render::PrimaryBuffers b = render::render_primary_buffers(scene, room.camera, false);
-  return {room.camera, b.depth, b.normal};
-}
 
 double abs_rel(const cv::Mat& est, const cv::Mat& truth) {
   double s = 0;
@@ -72,13 +52,13 @@ cv::Mat blurred_with_noise(const cv::Mat& depth, double sigma, uint64_t seed) {
 TEST(DepthSolve, GeometricPriorsFlattenANoisyRoom) {
   const RoomTruth t = room_truth(2, 160, 120);
   DepthProblem p;
-  p.camera = t.camera;
+  p.camera = t.room.camera;
   p.targets.push_back({blurred_with_noise(t.depth, 0.03, 3), 1.0, {}});
   DepthSolveOptions o;
   o.width = 80;
   const DepthSolution s = solve_depth(p, o);
   ASSERT_TRUE(cv::checkRange(s.depth));
-  const double noisy_normals = median_normal_error_deg(normals_from_depth(p.targets[0].depth, t.camera), t.normals);
+  const double noisy_normals = median_normal_error_deg(normals_from_depth(p.targets[0].depth, t.room.camera), t.normals);
   const double solved_normals = median_normal_error_deg(s.normals, t.normals);
   EXPECT_LT(solved_normals, 0.25 * noisy_normals) << noisy_normals << " -> " << solved_normals;
   EXPECT_LT(abs_rel(s.depth, t.depth), abs_rel(p.targets[0].depth, t.depth));
@@ -93,18 +73,17 @@ TEST(DepthSolve, OrientationLabelsTurnATiltedPlaneLevel) {
   // everywhere: the orientation term levels it.
   const RoomTruth t = room_truth(4, 96, 72);
   DepthProblem p;
-  p.camera = t.camera;
-  p.camera.R_world_from_cam = Eigen::AngleAxisd(0.0, Eigen::Vector3d::UnitX()) * t.camera.R_world_from_cam;
+  p.camera = t.room.camera;
   const int w = p.camera.width, h = p.camera.height;
   cv::Mat floor_depth(h, w, CV_32F, 0.f);
-  const double cam_h = t.camera.center_world.y();
+  const double cam_h = t.room.camera.center_world.y();
   const Eigen::Vector3d tilted_up = Eigen::AngleAxisd(0.08, Eigen::Vector3d::UnitZ()) * Eigen::Vector3d::UnitY();
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x) {
-      const Eigen::Vector3d d = t.camera.ray_direction(x, y);
+      const Eigen::Vector3d d = t.room.camera.ray_direction(x, y);
       const double along = -d.dot(tilted_up);
       if (along > 0.05) {
-        const Eigen::Vector3d fwd = t.camera.R_world_from_cam.col(2);
+        const Eigen::Vector3d fwd = t.room.camera.R_world_from_cam.col(2);
         floor_depth.at<float>(y, x) = static_cast<float>(cam_h / along * d.dot(fwd));
       }
     }
@@ -133,7 +112,7 @@ TEST(DepthSolve, OrientationLabelsTurnATiltedPlaneLevel) {
 TEST(DepthSolve, IsDeterministic) {
   const RoomTruth t = room_truth(1, 64, 48);
   DepthProblem p;
-  p.camera = t.camera;
+  p.camera = t.room.camera;
   p.targets.push_back({blurred_with_noise(t.depth, 0.03, 5), 1.0, {}});
   DepthSolveOptions o;
   o.width = 32;

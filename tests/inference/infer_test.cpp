@@ -74,7 +74,8 @@ TEST(InferScene, FloorDepthFollowsFromCameraHeight) {
   const cv::Mat img(240, 320, CV_32FC3, cv::Scalar::all(0.2));
   const SceneModel s = infer_scene(img, options);
   const double rows_below = 200 - s.cy;
-  EXPECT_NEAR(s.depth.at<float>(200, 160), s.fx * 1.5 / rows_below, 1e-3);
+  // 0.1%: the depth solve resamples the box to its grid and back.
+  EXPECT_NEAR(s.depth.at<float>(200, 160), s.fx * 1.5 / rows_below, 1e-3 * s.depth.at<float>(200, 160));
   EXPECT_NEAR(s.normals.at<cv::Vec3f>(200, 160)[1], 1.0, 1e-6);
 }
 

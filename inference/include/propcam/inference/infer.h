@@ -7,17 +7,32 @@
 #include <vector>
 
 #include "propcam/inference/camera.h"
+#include "propcam/inference/depth_solve.h"
 #include "propcam/inference/layout.h"
 #include "propcam/inference/lighting.h"
 #include "propcam/inference/scene_model.h"
+#include "propcam/inference/sky.h"
+#include "propcam/inference/support_planes.h"
 
 namespace propcam::inference {
+
+// Dense depth: the paper's energy over data targets (the Manhattan box
+// layout, depth transferred from the project's database) and geometric
+// priors (Manhattan, orientation map, 3D smoothness).
+struct GeometryOptions {
+  bool solve = true;              // false: the box layout alone (the first cut)
+  bool class_weights = true;      // priors' weights by scene class (DepthPriorWeights::indoor/outdoor)
+  double box_weight = 1.0;        // data-term weight of the box layout's depth
+  DepthSolveOptions solver;
+  SupportPlaneOptions support;
+};
 
 struct InferenceOptions {
   double camera_height_m = 1.5;  // the board's mount height; the paper's scale prior
   LineDetectionOptions lines;
   CameraOptions camera;
   LayoutOptions layout;
+  GeometryOptions geometry;
   AlbedoOptions albedo;
   LightingOptions lighting;
   // Segments given instead of detected (e.g. `--lines FILE.csv`).
@@ -25,6 +40,24 @@ struct InferenceOptions {
   // Called with each stage's name before it starts.
   std::function<void(const std::string&)> on_stage;
 };
+
+// The geometry half of inference: lines, camera, scene class, layout, dense
+// depth and support planes (what `propcam bench geometry` sweeps).
+struct GeometryEstimate {
+  std::vector<LineSegment> lines;
+  CameraEstimate camera;
+  render::PinholeCamera pinhole;   // the camera as the renderer sees it (height = camera_height_m)
+  bool indoor = true;
+  SkyEstimate sky;                 // what the scene classifier saw
+  cv::Mat sky_mask;                // CV_8U: sky.mask outdoors, empty indoors
+  Layout layout;                   // the Manhattan box (a data target)
+  cv::Mat depth, normals;          // final
+  std::vector<SupportPlane> planes;
+  std::vector<StageReport> reports;  // lines, camera, camera_height, scene_class, geometry, depth, support_planes
+};
+
+// `photo` as infer_scene sanitises it (finite, clipped); same errors as infer_scene.
+GeometryEstimate infer_geometry(const cv::Mat& photo, const InferenceOptions& options);
 
 // `photo_linear` is CV_32FC3 linear RGB. Throws std::invalid_argument for an
 // empty or too small photo; otherwise always returns a finite model whose

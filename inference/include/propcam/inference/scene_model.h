@@ -40,9 +40,13 @@ struct LightSource {
 const char* to_string(LightSource::Type type);
 
 struct SupportPlane {
-  std::string name;       // floor, wall_front, ...
+  std::string name;       // floor, wall_front, table_1, ...
   Eigen::Vector3d normal;  // world, unit, facing the camera
   double offset = 0.0;     // plane: normal . x + offset = 0
+  // Where the plane was seen (world, axis-aligned box of its pixels' points);
+  // unbounded planes (the layout's walls, hypotheses) have pixels == 0.
+  Eigen::Vector3d extent_min = Eigen::Vector3d::Zero(), extent_max = Eigen::Vector3d::Zero();
+  int pixels = 0;
 };
 
 struct SceneModel {
