@@ -14,6 +14,7 @@
 #include "bench.h"
 #include "bench_render.h"
 #include "bench_camera.h"
+#include "bench_geometry.h"
 #include "compositor.h"
 #include "progress.h"
 #include "propcam/capture/image_file.h"
@@ -522,6 +523,8 @@ int run_cli(int argc, char** argv) {
   bench->add_flag("--json", bench_json, "Machine-readable output");
   CameraBenchArgs bench_camera_args;
   auto* bench_camera = add_bench_camera_command(*bench, bench_camera_args);
+  GeometryBenchArgs bench_geometry_args;
+  auto* bench_geometry = add_bench_geometry_command(*bench, bench_geometry_args);
 
   RenderBenchOptions render_bench_options;
   bool render_bench_json = false;
@@ -585,6 +588,7 @@ int run_cli(int argc, char** argv) {
       return 0;
     }
     if (*bench_camera) return run_bench_camera_command(bench_camera_args);
+    if (*bench_geometry) return run_bench_geometry_command(bench_geometry_args);
     if (*bench) {
       if (!parse_pair(bench_size, bench_options.width, bench_options.height, 'x') || bench_options.width < 32 ||
           bench_options.height < 32)

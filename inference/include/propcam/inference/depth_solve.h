@@ -38,7 +38,9 @@ struct DepthPriorWeights {
 struct DepthSolveOptions {
   int width = 80;               // solve resolution (height keeps the aspect ratio)
   int max_iterations = 30;      // Levenberg-Marquardt iterations
-  double max_seconds = 0.8;     // wall-clock bound of the solve
+  // Wall-clock guard against a hang only: the iteration bound is what normally
+  // stops the solve, so the result does not depend on the machine's load.
+  double max_seconds = 5.0;
   DepthPriorWeights weights;
   bool use_manhattan = true;
   bool use_orientation = true;

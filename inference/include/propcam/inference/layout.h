@@ -1,5 +1,6 @@
 // Geometry stage (first cut): a gravity-aligned box of support planes (floor,
-// walls, ceiling indoors) fitted to where vertical scene edges meet the floor,
+// walls, ceiling indoors), each wall at the densest distance of where vertical
+// scene edges meet the floor,
 // giving depth and normals for every pixel. Pixels of `sky_mask` (CV_8U,
 // non-zero on sky) get render::kSkyDepthM: light, not geometry.
 #pragma once
@@ -19,7 +20,6 @@ struct LayoutOptions {
   double min_wall_distance_m = 0.6;
   double ceiling_height_m = 2.7;                 // indoors
   double max_depth_m = 200.0;                    // sky and far background
-  double wall_percentile = 0.5;                  // median floor contact per wall (tuned on synthetic seeds 2,4,5,6)
 };
 
 struct Layout {
