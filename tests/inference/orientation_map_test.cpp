@@ -105,6 +105,13 @@ struct Score {
   std::array<double, 4> region_coverage{};  // per true orientation, fraction of its pixels labelled right
 };
 
+Score score_corridor(const OrientationMap& map, const render::PinholeCamera& cam);
+
+void print(const char* what, const Score& s) {
+  std::cout << what << ": coverage " << s.coverage << ", accuracy " << s.accuracy << ", X/Y/Z regions covered "
+            << s.region_coverage[1] << " / " << s.region_coverage[2] << " / " << s.region_coverage[3] << "\n";
+}
+
 Score score_corridor(const OrientationMap& map, const render::PinholeCamera& cam) {
   const render::PinholeCamera out = cam.resized(map.labels.cols, map.labels.rows);
   Score s;
@@ -135,11 +142,12 @@ TEST(OrientationMap, CorridorSurfacesGetTheirNormals) {
   EXPECT_EQ(map.labels.cols, 160);
   EXPECT_EQ(map.labels.rows, 120);
   const Score s = score_corridor(map, cam);
-  EXPECT_GT(s.accuracy, 0.95) << "coverage " << s.coverage;
-  EXPECT_GT(s.coverage, 0.4);
-  EXPECT_GT(s.region_coverage[2], 0.4) << "floor and ceiling";
-  EXPECT_GT(s.region_coverage[1], 0.3) << "side walls";
-  EXPECT_GT(s.region_coverage[3], 0.3) << "back wall";
+  print("frontal corridor", s);
+  EXPECT_GT(s.accuracy, 0.98) << "coverage " << s.coverage;  // measured 0.999 at 0.96 coverage
+  EXPECT_GT(s.coverage, 0.85);
+  EXPECT_GT(s.region_coverage[2], 0.9) << "floor and ceiling";
+  EXPECT_GT(s.region_coverage[1], 0.85) << "side walls";
+  EXPECT_GT(s.region_coverage[3], 0.75) << "back wall";
   EXPECT_EQ(map.report.stage, "orientation_map");
   EXPECT_TRUE(map.report.usable);
   EXPECT_NEAR(map.report.details["coverage"].get<double>(), s.coverage, 1e-12);
@@ -151,10 +159,12 @@ TEST(OrientationMap, TurnedAndTiltedCorridor) {
   const Labelled l = corridor_lines(cam);
   const OrientationMap map = estimate_orientation_map(l.lines, l.labels, cam);
   const Score s = score_corridor(map, cam);
-  EXPECT_GT(s.accuracy, 0.9) << "coverage " << s.coverage;
-  EXPECT_GT(s.coverage, 0.3);
-  EXPECT_GT(s.region_coverage[2], 0.3);
-  EXPECT_GT(s.region_coverage[1], 0.2);
+  print("turned corridor", s);
+  EXPECT_GT(s.accuracy, 0.98) << "coverage " << s.coverage;  // measured 0.998 at 0.94 coverage
+  EXPECT_GT(s.coverage, 0.85);
+  EXPECT_GT(s.region_coverage[2], 0.9) << "floor and ceiling";
+  EXPECT_GT(s.region_coverage[1], 0.8) << "side walls";
+  EXPECT_GT(s.region_coverage[3], 0.75) << "back wall";
 }
 
 TEST(OrientationMap, FloorAloneIsLevel) {
@@ -167,6 +177,47 @@ TEST(OrientationMap, FloorAloneIsLevel) {
   EXPECT_GT(map.report.details["fraction_y"].get<double>(), 0.3);
   EXPECT_EQ(map.report.details["fraction_x"].get<double>(), 0.0);
   EXPECT_EQ(map.report.details["fraction_z"].get<double>(), 0.0);
+}
+
+// Projected axis-aligned segments scattered through a 6 x 3 x 8 m room, with
+// pixel noise and a share of clutter (label -1): what the camera stage hands over.
+Labelled scattered_lines(const render::PinholeCamera& cam, int count, uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> x(-3, 3), y(0, 3), z(-9, -1), len(0.3, 1.5), unit(0, 1);
+  std::normal_distribution<double> noise(0, 0.5);
+  Labelled l;
+  while (static_cast<int>(l.lines.size()) < count) {
+    const Eigen::Vector3d p(x(rng), y(rng), z(rng));
+    const int axis = static_cast<int>(unit(rng) * 3) % 3;
+    Eigen::Vector3d q = p;
+    q[axis] += len(rng);
+    Eigen::Vector2d a, b;
+    if (!cam.project(p, a) || !cam.project(q, b)) continue;
+    auto inside = [&](const Eigen::Vector2d& v) {
+      return v.x() >= 0 && v.y() >= 0 && v.x() < cam.width && v.y() < cam.height;
+    };
+    if (!inside(a) || !inside(b) || (a - b).norm() < 16) continue;
+    l.lines.push_back({a + Eigen::Vector2d(noise(rng), noise(rng)), b + Eigen::Vector2d(noise(rng), noise(rng))});
+    l.labels.push_back(unit(rng) < 0.1 ? -1 : axis);
+  }
+  return l;
+}
+
+TEST(OrientationMap, FastAt640x480With400Lines) {
+  // The brief: <= 20 ms on one core. The median of 15 runs is printed; the
+  // assertion leaves room for a loaded machine.
+  const render::PinholeCamera cam = make_camera(640, 480, 520, 25, -10, {0, 1.5, 0});
+  const Labelled l = scattered_lines(cam, 400, 3);
+  std::vector<double> ms;
+  for (int run = 0; run < 15; ++run) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const OrientationMap map = estimate_orientation_map(l.lines, l.labels, cam);
+    ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    ASSERT_EQ(map.labels.cols, 160);
+  }
+  std::sort(ms.begin(), ms.end());
+  std::cout << "640x480, 400 lines: median " << ms[ms.size() / 2] << " ms, min " << ms.front() << " ms\n";
+  EXPECT_LT(ms[ms.size() / 2], 40.0);
 }
 
 TEST(OrientationMap, OutputSizeFollowsTheAspectRatio) {
@@ -252,21 +303,25 @@ RoomScore run_pipeline(const cv::Mat& photo, const cv::Mat& true_normals, const 
 }
 
 TEST(OrientationMap, SyntheticRoomsThroughThePipeline) {
-  // Low resolution and few samples keep this quick; the README's table is
-  // the full-resolution run (DISABLED_SyntheticRoomTable below).
+  // Reduced resolution and samples keep this quick; the README's table is
+  // the full-resolution run (DISABLED_SyntheticRoomTable below). Seed 2 is
+  // the hardest of 1-8 there. Measured here: seed 2 coverage 0.47, accuracy
+  // 0.875; seed 4: 0.63, 0.876 (lower than at 640x480 with 64 spp, where
+  // detect_lines sees cleaner edges).
   for (uint64_t seed : {2u, 4u}) {
-    const RoomTruth t = room_truth(seed, 320, 240);
+    const RoomTruth t = room_truth(seed, 480, 360);
     render::Scene scene;
     scene.add_mesh(t.room.room, render::Layer::Background);
     scene.commit();
     render::RenderSettings settings;
-    settings.samples_per_pixel = 8;
+    settings.samples_per_pixel = 16;
     const cv::Mat photo = render::render_image(scene, t.room.camera, t.room.lights, settings);
     OrientationMapOptions o;
     o.width = 160;
     const RoomScore s = run_pipeline(photo, t.normals, t.depth, t.room.camera.R_world_from_cam, o);
+    std::cout << "seed " << seed << ": coverage " << s.coverage << ", accuracy " << s.accuracy << "\n";
     EXPECT_GT(s.accuracy, 0.80) << "seed " << seed << " coverage " << s.coverage;
-    EXPECT_GT(s.coverage, 0.20) << "seed " << seed;
+    EXPECT_GT(s.coverage, 0.30) << "seed " << seed;
   }
 }
 
