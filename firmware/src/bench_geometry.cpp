@@ -151,6 +151,8 @@ std::vector<Config> make_configs(const std::vector<std::string>& wanted) {
     c.push_back({"priors", "no Manhattan", 1, [](inference::InferenceOptions& o) { o.geometry.solver.use_manhattan = false; }});
     c.push_back({"priors", "no orientation map", 2, [](inference::InferenceOptions& o) { o.geometry.solver.use_orientation = false; }});
     c.push_back({"priors", "no 3D smoothness", 3, [](inference::InferenceOptions& o) { o.geometry.solver.use_smoothness = false; }});
+    c.push_back({"priors", "no floor contacts", 5, [](inference::InferenceOptions& o) { o.geometry.contact_weight = 0; }});
+    c.push_back({"priors", "no box", 6, [](inference::InferenceOptions& o) { o.geometry.box_weight = 0; }});
     c.push_back({"priors", "data term only", 4, [](inference::InferenceOptions& o) {
                    o.geometry.solver.use_manhattan = o.geometry.solver.use_orientation = o.geometry.solver.use_smoothness = false;
                  }});

@@ -38,14 +38,15 @@ struct Grid {
   std::vector<Vector3d> rays;     // world direction with camera z = 1 (depth scales it)
 };
 
-// Log-depth of a target resampled to the grid by area, ignoring pixels with
-// no opinion; `valid` (CV_32F) gets the fraction of the cell with an opinion
-// times the target's confidence.
+// Log-depth of a target resampled to the grid, ignoring pixels with no
+// opinion: the area average of inverse depth (affine in the image over a
+// plane, so a floor stays exact), then its log. `valid` (CV_32F) gets the
+// fraction of the cell with an opinion times the target's confidence.
 void resample_target(const DepthTarget& t, int w, int h, cv::Mat& log_depth, cv::Mat& valid) {
   if (t.depth.empty() || t.depth.type() != CV_32F) throw std::invalid_argument("solve_depth: targets must be CV_32F depth maps");
   if (!t.confidence.empty() && (t.confidence.type() != CV_32F || t.confidence.size() != t.depth.size()))
     throw std::invalid_argument("solve_depth: a target's confidence must be CV_32F at its depth's size");
-  cv::Mat logd(t.depth.size(), CV_32F, 0.f), ok(t.depth.size(), CV_32F, 0.f);
+  cv::Mat inv(t.depth.size(), CV_32F, 0.f), ok(t.depth.size(), CV_32F, 0.f);
   for (int y = 0; y < t.depth.rows; ++y)
     for (int x = 0; x < t.depth.cols; ++x) {
       const float d = t.depth.at<float>(y, x);
@@ -54,15 +55,16 @@ void resample_target(const DepthTarget& t, int w, int h, cv::Mat& log_depth, cv:
       if (!std::isfinite(c)) c = 0;
       c = std::clamp(c, 0.f, 1.f);
       const double clamped = std::clamp(static_cast<double>(d), kMinDepthM, kMaxDepthM);
-      logd.at<float>(y, x) = static_cast<float>(std::log(clamped)) * c;
+      inv.at<float>(y, x) = static_cast<float>(1.0 / clamped) * c;
       ok.at<float>(y, x) = c;
     }
-  cv::resize(logd, log_depth, cv::Size(w, h), 0, 0, cv::INTER_AREA);
+  cv::resize(inv, log_depth, cv::Size(w, h), 0, 0, cv::INTER_AREA);
   cv::resize(ok, valid, cv::Size(w, h), 0, 0, cv::INTER_AREA);
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x) {
       const float v = valid.at<float>(y, x);
-      log_depth.at<float>(y, x) = v > 1e-4f ? log_depth.at<float>(y, x) / v : 0.f;
+      const float mean_inv = v > 1e-4f ? log_depth.at<float>(y, x) / v : 0.f;
+      log_depth.at<float>(y, x) = mean_inv > 0 ? -std::log(mean_inv) : 0.f;
     }
 }
 

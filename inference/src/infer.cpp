@@ -1,5 +1,7 @@
 #include "propcam/inference/infer.h"
 
+#include "propcam/inference/contact_depth.h"
+
 #include <stdexcept>
 
 
@@ -71,12 +73,23 @@ GeometryEstimate infer_geometry(const cv::Mat& photo, const InferenceOptions& op
   g.depth = g.layout.depth;
   g.normals = g.layout.normals;
   if (options.geometry.solve) {
-    stage("depth");
     DepthProblem problem;
     problem.camera = g.pinhole;
     problem.targets.push_back({g.layout.depth, options.geometry.box_weight, {}});
     problem.sky_mask = g.sky_mask;
+    if (options.geometry.solver.use_orientation || options.geometry.contact_weight > 0) {
+      stage("orientation_map");
+      OrientationMap om = estimate_orientation_map(g.lines, g.camera.line_labels, g.pinhole, options.geometry.orientation);
+      g.orientation = om.labels;
+      if (options.geometry.solver.use_orientation) problem.orientation_labels = om.labels;
+      g.reports.push_back(om.report);
+    }
+    if (options.geometry.contact_weight > 0 && !g.orientation.empty()) {
+      ContactDepth contact = contact_depth_target(g.orientation, g.pinhole, g.layout.normals);
+      problem.targets.push_back({contact.depth, options.geometry.contact_weight, contact.confidence});
+    }
     problem.guide_photo = photo;
+    stage("depth");
     DepthSolveOptions solver = options.geometry.solver;
     if (options.geometry.class_weights) solver.weights = g.indoor ? DepthPriorWeights::indoor() : DepthPriorWeights::outdoor();
     DepthSolution depth = solve_depth(problem, solver);

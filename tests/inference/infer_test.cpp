@@ -74,9 +74,9 @@ TEST(InferScene, FloorDepthFollowsFromCameraHeight) {
   const cv::Mat img(240, 320, CV_32FC3, cv::Scalar::all(0.2));
   const SceneModel s = infer_scene(img, options);
   const double rows_below = 200 - s.cy;
-  // 0.1%: the depth solve resamples the box to its grid and back.
-  EXPECT_NEAR(s.depth.at<float>(200, 160), s.fx * 1.5 / rows_below, 1e-3 * s.depth.at<float>(200, 160));
-  EXPECT_NEAR(s.normals.at<cv::Vec3f>(200, 160)[1], 1.0, 1e-6);
+  // 0.5%: the depth solve's priors pull a little at the floor-wall crease.
+  EXPECT_NEAR(s.depth.at<float>(200, 160), s.fx * 1.5 / rows_below, 5e-3 * s.depth.at<float>(200, 160));
+  EXPECT_NEAR(s.normals.at<cv::Vec3f>(200, 160)[1], 1.0, 1e-4);
 }
 
 TEST(SceneModelFolder, RoundTripsEverything) {

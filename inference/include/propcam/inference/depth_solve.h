@@ -36,7 +36,7 @@ struct DepthPriorWeights {
 };
 
 struct DepthSolveOptions {
-  int width = 80;               // solve resolution (height keeps the aspect ratio)
+  int width = 60;               // solve grid width (height keeps the aspect ratio); see inference/README.md for the sweep
   int max_iterations = 30;      // Levenberg-Marquardt iterations
   // Wall-clock guard against a hang only: the iteration bound is what normally
   // stops the solve, so the result does not depend on the machine's load.

@@ -9,6 +9,7 @@
 #include "propcam/inference/camera.h"
 #include "propcam/inference/depth_solve.h"
 #include "propcam/inference/layout.h"
+#include "propcam/inference/orientation_map.h"
 #include "propcam/inference/lighting.h"
 #include "propcam/inference/scene_model.h"
 #include "propcam/inference/sky.h"
@@ -23,7 +24,9 @@ struct GeometryOptions {
   bool solve = true;              // false: the box layout alone (the first cut)
   bool class_weights = true;      // priors' weights by scene class (DepthPriorWeights::indoor/outdoor)
   double box_weight = 1.0;        // data-term weight of the box layout's depth
+  double contact_weight = 2.0;    // data-term weight of the floor-contact depth (contact_depth.h); 0: off
   DepthSolveOptions solver;
+  OrientationMapOptions orientation;  // E_o's labels and the floor contacts
   SupportPlaneOptions support;
 };
 
@@ -51,6 +54,7 @@ struct GeometryEstimate {
   SkyEstimate sky;                 // what the scene classifier saw
   cv::Mat sky_mask;                // CV_8U: sky.mask outdoors, empty indoors
   Layout layout;                   // the Manhattan box (a data target)
+  cv::Mat orientation;             // CV_8U SurfaceOrientation labels (empty when not computed)
   cv::Mat depth, normals;          // final
   std::vector<SupportPlane> planes;
   std::vector<StageReport> reports;  // lines, camera, camera_height, scene_class, geometry, depth, support_planes
