@@ -296,7 +296,9 @@ OrientationMap estimate_orientation_map(const std::vector<LineSegment>& lines, c
           if (options.block_by_lines_ahead)
             for (const Segment* blocker : by_axis[j])
               reach = std::min(reach, blocker_travel(s, blocker->a, blocker->b, limits.margin_px, true));
-          if (reach > 0) paint_sweep(s, reach, limits.max_corner_px, mask);
+          // Blocked at the start: nothing was swept (painting the sliver would put
+          // conflicting support on the segment's own pixels).
+          if (reach > limits.margin_px) paint_sweep(s, reach, limits.max_corner_px, mask);
           swept = true;
         }
       }

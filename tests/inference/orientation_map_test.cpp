@@ -217,6 +217,9 @@ TEST(OrientationMap, FastAt640x480With400Lines) {
   }
   std::sort(ms.begin(), ms.end());
   std::cout << "640x480, 400 lines: median " << ms[ms.size() / 2] << " ms, min " << ms.front() << " ms\n";
+#if defined(__SANITIZE_ADDRESS__) || !defined(NDEBUG)
+  GTEST_SKIP() << "timing is only checked in optimised builds without sanitizers";
+#endif
   EXPECT_LT(ms[ms.size() / 2], 40.0);
 }
 
