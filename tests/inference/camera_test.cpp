@@ -10,58 +10,17 @@
 
 #include "propcam/inference/camera.h"
 #include "propcam/render/camera.h"
+#include "line_scenes.h"
 
 namespace propcam::inference {
 namespace {
 
+using testing::axis_lines;
+using testing::make_camera;
+using testing::manhattan_lines;
+using testing::rolled;
+
 constexpr double kRadToDeg = 180.0 / std::numbers::pi;
-
-render::PinholeCamera make_camera(double f, double yaw_deg, double pitch_deg) {
-  render::PinholeCamera cam;
-  cam.width = 640;
-  cam.height = 480;
-  cam.fx = cam.fy = f;
-  cam.cx = 319.5;
-  cam.cy = 239.5;
-  const double yaw = yaw_deg / kRadToDeg, pitch = pitch_deg / kRadToDeg;
-  const Eigen::Vector3d forward(-std::sin(yaw) * std::cos(pitch), std::sin(pitch), -std::cos(yaw) * std::cos(pitch));
-  const Eigen::Vector3d right = forward.cross(Eigen::Vector3d::UnitY()).normalized();
-  cam.R_world_from_cam.col(0) = right;
-  cam.R_world_from_cam.col(1) = forward.cross(right);
-  cam.R_world_from_cam.col(2) = forward;
-  cam.center_world = {0, 1.5, 0};
-  return cam;
-}
-
-// Projects random axis-aligned 3D segments inside a 6x3x8 m room, with pixel noise.
-std::vector<LineSegment> manhattan_lines(const render::PinholeCamera& cam, int per_axis, double noise_px,
-                                         uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<double> x(-3, 3), y(0, 3), z(-8, -1.5), len(0.5, 1.5);
-  std::normal_distribution<double> noise(0, noise_px);
-  std::vector<LineSegment> lines;
-  for (int axis = 0; axis < 3; ++axis)
-    for (int i = 0; i < per_axis * 20 && static_cast<int>(lines.size()) < per_axis * (axis + 1); ++i) {
-      const Eigen::Vector3d p(x(rng), y(rng), z(rng));
-      Eigen::Vector3d q = p;
-      q[axis] += len(rng);
-      Eigen::Vector2d a, b;
-      if (!cam.project(p, a) || !cam.project(q, b)) continue;
-      auto inside = [&](const Eigen::Vector2d& v) { return v.x() >= 0 && v.y() >= 0 && v.x() < 640 && v.y() < 480; };
-      if (!inside(a) || !inside(b) || (a - b).norm() < 20) continue;
-      lines.push_back({a + Eigen::Vector2d(noise(rng), noise(rng)), b + Eigen::Vector2d(noise(rng), noise(rng))});
-    }
-  return lines;
-}
-
-// The camera turned about its optical axis by `roll_deg` (image rotated clockwise).
-render::PinholeCamera rolled(render::PinholeCamera cam, double roll_deg) {
-  const double r = roll_deg / kRadToDeg;
-  const Eigen::Vector3d right = cam.R_world_from_cam.col(0), down = cam.R_world_from_cam.col(1);
-  cam.R_world_from_cam.col(0) = std::cos(r) * right + std::sin(r) * down;
-  cam.R_world_from_cam.col(1) = -std::sin(r) * right + std::cos(r) * down;
-  return cam;
-}
 
 // Worst angle between a true world axis and the nearest estimated one (as
 // lines: sign-free), both in camera coordinates.
@@ -75,26 +34,6 @@ double axes_error_deg(const CameraEstimate& est, const render::PinholeCamera& ca
     worst = std::max(worst, best);
   }
   return worst;
-}
-
-// `count` projected segments along one world axis only.
-std::vector<LineSegment> axis_lines(const render::PinholeCamera& cam, int axis, int count, double noise_px,
-                                    uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<double> x(-3, 3), y(0, 3), z(-8, -1.5), len(0.5, 1.5);
-  std::normal_distribution<double> noise(0, noise_px);
-  std::vector<LineSegment> lines;
-  for (int i = 0; i < count * 100 && static_cast<int>(lines.size()) < count; ++i) {
-    const Eigen::Vector3d p(x(rng), y(rng), z(rng));
-    Eigen::Vector3d q = p;
-    q[axis] += len(rng);
-    Eigen::Vector2d a, b;
-    if (!cam.project(p, a) || !cam.project(q, b)) continue;
-    auto inside = [&](const Eigen::Vector2d& v) { return v.x() >= 0 && v.y() >= 0 && v.x() < 640 && v.y() < 480; };
-    if (!inside(a) || !inside(b) || (a - b).norm() < 20) continue;
-    lines.push_back({a + Eigen::Vector2d(noise(rng), noise(rng)), b + Eigen::Vector2d(noise(rng), noise(rng))});
-  }
-  return lines;
 }
 
 double up_error_deg(const Eigen::Matrix3d& est, const Eigen::Matrix3d& truth) {
