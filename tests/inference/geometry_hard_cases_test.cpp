@@ -42,8 +42,11 @@ void expect_finite_and_deterministic(const cv::Mat& photo, const std::optional<s
   EXPECT_EQ(cv::norm(a.depth, b.depth, cv::NORM_INF), 0.0) << "not deterministic";
   EXPECT_EQ(a.camera.fx, b.camera.fx);
   EXPECT_FALSE(a.planes.empty());
-  for (const auto& r : a.reports)
-    if (r.stage == "depth") EXPECT_TRUE(r.details.contains("converged"));
+  for (const auto& r : a.reports) {
+    if (r.stage == "depth") {
+      EXPECT_TRUE(r.details.contains("converged"));
+    }
+  }
 }
 
 double up_error_deg(const Eigen::Matrix3d& est, const Eigen::Matrix3d& truth) {
