@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <functional>
 #include <iostream>
 #include <numbers>
@@ -290,7 +291,8 @@ void plot_geometry_bench(const json& r, const std::string& dir) {
   }
   std::ostringstream gp;
   gp << "$data << EOD\n" << dat.str() << "\nEOD\n"
-     << "set terminal png size 1100,480\nset grid\nset key top right\nset output 'geometry.png'\n"
+     << "set terminal png size 1100,480\nset grid\nset key top right\nset output '"
+     << (std::filesystem::path(dir) / "geometry.png").string() << "'\n"
         "set multiplot layout 1,2 title 'Geometry: error against seconds per scene (labels: the knob)'\n"
         "set xlabel 'seconds per scene'\nset ylabel 'depth abs-rel (median)'\n"
         "plot for [i=0:*] $data index i using 2:3 with linespoints pt 7 title columnhead(1), "

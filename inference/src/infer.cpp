@@ -2,6 +2,7 @@
 
 #include "propcam/inference/contact_depth.h"
 
+#include <algorithm>
 #include <stdexcept>
 
 
@@ -89,10 +90,16 @@ GeometryEstimate infer_geometry(const cv::Mat& photo, const InferenceOptions& op
       problem.targets.push_back({contact.depth, options.geometry.contact_weight, contact.confidence});
     }
     problem.guide_photo = photo;
+    // Every data target switched off or silent (no floor seen): the box stands in.
+    const bool any_opinion = std::any_of(problem.targets.begin(), problem.targets.end(), [](const DepthTarget& t) {
+      return t.weight > 0 && cv::countNonZero(t.depth > 0) > 0;
+    });
+    if (!any_opinion) problem.targets.push_back({g.layout.depth, 1.0, {}});
     stage("depth");
     DepthSolveOptions solver = options.geometry.solver;
     if (options.geometry.class_weights) solver.weights = g.indoor ? DepthPriorWeights::indoor() : DepthPriorWeights::outdoor();
     DepthSolution depth = solve_depth(problem, solver);
+    depth.report.details["box_stood_in"] = !any_opinion;
     g.depth = depth.depth;
     g.normals = depth.normals;
     g.reports.push_back(depth.report);

@@ -184,6 +184,23 @@ TEST(Cli, BenchReportsStagesAndPlots) {
   EXPECT_GT(fs::file_size(plots + "/camera_ransac.png"), 1000u);
 }
 
+TEST(Cli, BenchGeometryReportsErrorsAgainstSecondsAndPlots) {
+  const std::string plots = temp("geometry_plots");
+  const CliRun r = propcam("bench geometry --rooms 1 --streets 0 --size 160x120 --spp 4 --sweeps priors,resolution"
+                           " --timing-width 0 --json --plot " + plots);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const json b = json_tail(r.out);
+  ASSERT_GE(b["rows"].size(), 8u);
+  for (const auto& row : b["rows"])
+    for (const char* k : {"focal_rel_median", "vp_deg_median", "abs_rel_median", "rmse_log_median", "normal_deg_median",
+                          "seconds_mean"}) {
+      ASSERT_TRUE(row["all"][k].is_number()) << row["label"] << " " << k;
+      EXPECT_TRUE(std::isfinite(row["all"][k].get<double>())) << row["label"] << " " << k;
+    }
+  EXPECT_GT(fs::file_size(plots + "/geometry.png"), 1000u);
+  EXPECT_EQ(propcam("bench geometry --sweeps nonsense").exit_code, 2);
+}
+
 TEST(Cli, BenchRenderReportsSpeedAndErrorPerSize) {
   const std::string plots = temp("render_plots");
   const CliRun r = propcam("bench render --sizes 96x72 --reference-spp 64 --max-spp 16 --skip-size 64x48 --skip-spp 2"
