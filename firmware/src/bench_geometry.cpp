@@ -291,7 +291,7 @@ void plot_geometry_bench(const json& r, const std::string& dir) {
   }
   std::ostringstream gp;
   gp << "$data << EOD\n" << dat.str() << "\nEOD\n"
-     << "set terminal png size 1100,480\nset grid\nset key top right\nset output '"
+     << "set terminal png size 1100,480 noenhanced\nset grid\nset key top right\nset output '"
      << (std::filesystem::path(dir) / "geometry.png").string() << "'\n"
         "set multiplot layout 1,2 title 'Geometry: error against seconds per scene (labels: the knob)'\n"
         "set xlabel 'seconds per scene'\nset ylabel 'depth abs-rel (median)'\n"

@@ -100,4 +100,18 @@ ContactDepth contact_depth_target(const cv::Mat& labels, const render::PinholeCa
   return out;
 }
 
+std::vector<Vector3d> seen_floor_points(const cv::Mat& labels, const render::PinholeCamera& full_camera) {
+  if (labels.empty() || labels.type() != CV_8U) throw std::invalid_argument("seen_floor_points: labels must be CV_8U");
+  const render::PinholeCamera cam = full_camera.resized(labels.cols, labels.rows);
+  std::vector<Vector3d> points;
+  if (!(cam.center_world.y() > 0)) return points;
+  for (int y = 0; y < labels.rows; ++y)
+    for (int x = 0; x < labels.cols; ++x) {
+      if (labels.at<uint8_t>(y, x) != static_cast<uint8_t>(SurfaceOrientation::kNormalY)) continue;
+      const Vector3d d = cam.ray_direction(x, y);
+      if (d.y() < -kMinDownSlope) points.push_back(cam.center_world + d * (cam.center_world.y() / -d.y()));
+    }
+  return points;
+}
+
 }  // namespace propcam::inference

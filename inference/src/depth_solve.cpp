@@ -186,23 +186,46 @@ double fill_initial_guess(cv::Mat& log_target, const cv::Mat& sky) {
   return med;
 }
 
-// Edge-aware upsampling in inverse depth, which is affine in the image over
-// any plane, so bilinear interpolation keeps floors and walls exactly planar;
-// a guided filter (guide: the photo's gamma-encoded luminance) then snaps
-// depth edges to image edges.
+// Cells where the solved surface bends or breaks: the second difference of
+// inverse depth (zero on any plane) above kDepthEdgeRelative of the cell's
+// own inverse depth, in either direction, grown by one cell.
+constexpr float kDepthEdgeRelative = 0.02f;
+
+cv::Mat depth_edge_cells(const cv::Mat& inv) {
+  cv::Mat edge(inv.size(), CV_32F, cv::Scalar(0.f));
+  for (int y = 0; y < inv.rows; ++y)
+    for (int x = 0; x < inv.cols; ++x) {
+      const float c = inv.at<float>(y, x);
+      float bend = 0;
+      if (x > 0 && x + 1 < inv.cols) bend = std::max(bend, std::abs(inv.at<float>(y, x - 1) - 2 * c + inv.at<float>(y, x + 1)));
+      if (y > 0 && y + 1 < inv.rows) bend = std::max(bend, std::abs(inv.at<float>(y - 1, x) - 2 * c + inv.at<float>(y + 1, x)));
+      if (bend > kDepthEdgeRelative * c) edge.at<float>(y, x) = 1.f;
+    }
+  cv::dilate(edge, edge, cv::Mat::ones(3, 3, CV_8U));
+  return edge;
+}
+
+// Upsampling in inverse depth, which is affine in the image over any plane,
+// so bilinear interpolation keeps floors and walls exactly planar. Only where
+// the surface bends or breaks does a guided filter (guide: the photo's
+// gamma-encoded luminance) snap depth to image edges; elsewhere it would
+// print the photo's texture into the depth as ripples (and into the normals).
 cv::Mat upsample_inverse_depth(const cv::Mat& inv_low, const cv::Size& size, const cv::Mat& guide_photo, double sigma_color) {
   cv::Mat up;
   cv::resize(inv_low, up, size, 0, 0, cv::INTER_LINEAR);
   if (guide_photo.empty() || inv_low.cols >= size.width) return up;
+  cv::Mat edge;
+  cv::resize(depth_edge_cells(inv_low), edge, size, 0, 0, cv::INTER_LINEAR);
+  if (cv::countNonZero(edge) == 0) return up;
   cv::Mat gray;
   cv::cvtColor(guide_photo, gray, cv::COLOR_RGB2GRAY);
   cv::max(gray, 0.0, gray);
   cv::pow(gray, 1.0 / 2.2, gray);
   cv::min(gray, 1.0, gray);
   const int radius = std::max(1, static_cast<int>(std::lround(static_cast<double>(size.width) / inv_low.cols)));
-  cv::Mat out;
-  cv::ximgproc::guidedFilter(gray, up, out, radius, sigma_color * sigma_color);
-  return out;
+  cv::Mat guided;
+  cv::ximgproc::guidedFilter(gray, up, guided, radius, sigma_color * sigma_color);
+  return up + edge.mul(guided - up);
 }
 
 }  // namespace

@@ -68,8 +68,16 @@ GeometryEstimate infer_geometry(const cv::Mat& photo, const InferenceOptions& op
   g.reports.push_back(class_report);
   if (!g.indoor) g.sky_mask = g.sky.mask;
 
+  // The orientation map (about a millisecond) serves the box (the floor it
+  // sees), the floor-contact target and the E_o prior.
+  stage("orientation_map");
+  OrientationMap om = estimate_orientation_map(g.lines, g.camera.line_labels, g.pinhole, options.geometry.orientation);
+  g.orientation = om.labels;
+  g.reports.push_back(om.report);
+
   stage("geometry");
-  g.layout = estimate_layout(g.pinhole, g.lines, g.camera.line_labels, g.indoor, options.layout, g.sky_mask);
+  g.layout = estimate_layout(g.pinhole, g.lines, g.camera.line_labels, g.indoor, options.layout, g.sky_mask,
+                             seen_floor_points(g.orientation, g.pinhole));
   g.reports.push_back(g.layout.report);
   g.depth = g.layout.depth;
   g.normals = g.layout.normals;
@@ -78,14 +86,8 @@ GeometryEstimate infer_geometry(const cv::Mat& photo, const InferenceOptions& op
     problem.camera = g.pinhole;
     problem.targets.push_back({g.layout.depth, options.geometry.box_weight, {}});
     problem.sky_mask = g.sky_mask;
-    if (options.geometry.solver.use_orientation || options.geometry.contact_weight > 0) {
-      stage("orientation_map");
-      OrientationMap om = estimate_orientation_map(g.lines, g.camera.line_labels, g.pinhole, options.geometry.orientation);
-      g.orientation = om.labels;
-      if (options.geometry.solver.use_orientation) problem.orientation_labels = om.labels;
-      g.reports.push_back(om.report);
-    }
-    if (options.geometry.contact_weight > 0 && !g.orientation.empty()) {
+    if (options.geometry.solver.use_orientation) problem.orientation_labels = g.orientation;
+    if (options.geometry.contact_weight > 0) {
       ContactDepth contact = contact_depth_target(g.orientation, g.pinhole, g.layout.normals);
       problem.targets.push_back({contact.depth, options.geometry.contact_weight, contact.confidence});
     }

@@ -26,6 +26,8 @@ constexpr double kMinFloorRaySlope = 0.02;
 // depth abs-rel 0.21 -> 0.09); the farthest dense cluster is worse (0.48):
 // panelling that stops at a dado rail makes a dense cluster beyond the wall.
 constexpr double kContactBandwidthLog = 0.05;
+// Share of the seen floor a wall must stand behind (the rest may be mislabelled).
+constexpr double kSeenFloorPercentile = 0.95;
 constexpr int kMinContactsForMode = 3;
 
 double wall_distance_from_contacts(const std::vector<double>& d) {
@@ -72,7 +74,7 @@ bool continues_downwards(const std::vector<LineSegment>& lines, const std::vecto
 
 Layout estimate_layout(const render::PinholeCamera& camera, const std::vector<LineSegment>& lines,
                        const std::vector<int>& line_labels, bool indoor, const LayoutOptions& options,
-                       const cv::Mat& sky_mask) {
+                       const cv::Mat& sky_mask, const std::vector<Vector3d>& seen_floor) {
   const auto start = std::chrono::steady_clock::now();
   if (!sky_mask.empty() && (sky_mask.type() != CV_8U || sky_mask.cols != camera.width || sky_mask.rows != camera.height))
     throw std::invalid_argument("estimate_layout: the sky mask must be CV_8U at the camera's size");
@@ -97,6 +99,7 @@ Layout estimate_layout(const render::PinholeCamera& camera, const std::vector<Li
   const char* names[4] = {"wall_pos_x", "wall_neg_x", "wall_pos_z", "wall_neg_z"};
   double wall[4];
   int evidence[4];
+  bool pushed_by_floor[4] = {false, false, false, false};
   for (int a = 0; a < 4; ++a) {
     std::vector<double> dist;
     for (const Vector3d& p : contacts) {
@@ -110,6 +113,18 @@ Layout estimate_layout(const render::PinholeCamera& camera, const std::vector<Li
     wall[a] = dist.size() >= kMinContactsForMode ? wall_distance_from_contacts(dist)
               : dist.empty()                        ? fallback
                                                     : *std::max_element(dist.begin(), dist.end());
+    // Floor seen beyond a wall would be outside the room: every wall stands
+    // at least as far as (a high percentile of) the floor seen towards it.
+    if (!seen_floor.empty()) {
+      std::vector<double> beyond;
+      for (const Vector3d& p : seen_floor) beyond.push_back((p - camera.center_world).dot(axes[a]));
+      const size_t k = static_cast<size_t>(kSeenFloorPercentile * (beyond.size() - 1));
+      std::nth_element(beyond.begin(), beyond.begin() + k, beyond.end());
+      if (beyond[k] > wall[a]) {
+        wall[a] = beyond[k];
+        pushed_by_floor[a] = true;
+      }
+    }
     wall[a] = std::clamp(wall[a] + 0.05, options.min_wall_distance_m, options.max_depth_m);
   }
 
@@ -154,6 +169,8 @@ Layout estimate_layout(const render::PinholeCamera& camera, const std::vector<Li
   r.details = {{"floor_contacts", contacts.size()},
                {"walls_m", {wall[0], wall[1], wall[2], wall[3]}},
                {"walls_evidence", {evidence[0], evidence[1], evidence[2], evidence[3]}},
+               {"walls_pushed_by_seen_floor", {pushed_by_floor[0], pushed_by_floor[1], pushed_by_floor[2], pushed_by_floor[3]}},
+               {"seen_floor_points", seen_floor.size()},
                {"indoor", indoor}};
   return layout;
 }

@@ -6,7 +6,9 @@
 // the room box, this puts furniture where its base is.
 #pragma once
 
+#include <Eigen/Core>
 #include <opencv2/core.hpp>
+#include <vector>
 
 #include "propcam/render/camera.h"
 
@@ -24,5 +26,9 @@ struct ContactDepth {
 // way a vertical surface faces where the map does not say.
 ContactDepth contact_depth_target(const cv::Mat& labels, const render::PinholeCamera& camera,
                                   const cv::Mat& box_normals = cv::Mat());
+
+// World points of the pixels `labels` marks as horizontal and below the
+// horizon: the floor the orientation map sees (one per labelled pixel).
+std::vector<Eigen::Vector3d> seen_floor_points(const cv::Mat& labels, const render::PinholeCamera& camera);
 
 }  // namespace propcam::inference

@@ -2,7 +2,8 @@
 // walls, ceiling indoors), each wall at the densest distance of where vertical
 // scene edges meet the floor,
 // giving depth and normals for every pixel. Pixels of `sky_mask` (CV_8U,
-// non-zero on sky) get render::kSkyDepthM: light, not geometry.
+// non-zero on sky) get render::kSkyDepthM: light, not geometry. `seen_floor`
+// (world points the orientation map sees as floor) pushes walls behind it.
 #pragma once
 
 #include <opencv2/core.hpp>
@@ -31,6 +32,6 @@ struct Layout {
 
 Layout estimate_layout(const render::PinholeCamera& camera, const std::vector<LineSegment>& lines,
                        const std::vector<int>& line_labels, bool indoor, const LayoutOptions& options = {},
-                       const cv::Mat& sky_mask = cv::Mat());
+                       const cv::Mat& sky_mask = cv::Mat(), const std::vector<Eigen::Vector3d>& seen_floor = {});
 
 }  // namespace propcam::inference
