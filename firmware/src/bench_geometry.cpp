@@ -148,11 +148,27 @@ std::vector<Config> make_configs(const std::vector<std::string>& wanted) {
                      o.geometry.solver.max_iterations = it;
                      o.geometry.solver.max_seconds = 10.0;
                    }});
+  if (want("transfer")) {
+    // Depth transfer as the only data term: candidates and the warp.
+    for (int k : {1, 3, 7, 15})
+      c.push_back({"transfer", "k=" + std::to_string(k) + " alone", static_cast<double>(k), [k](inference::InferenceOptions& o) {
+                     o.geometry.box_weight = o.geometry.contact_weight = 0;
+                     o.geometry.transfer.k = k;
+                   }});
+    c.push_back({"transfer", "k=7 alone, no warp", 0, [](inference::InferenceOptions& o) {
+                   o.geometry.box_weight = o.geometry.contact_weight = 0;
+                   o.geometry.transfer.warp = false;
+                 }});
+  }
   if (want("priors")) {
     c.push_back({"priors", "no Manhattan", 1, [](inference::InferenceOptions& o) { o.geometry.solver.use_manhattan = false; }});
     c.push_back({"priors", "no orientation map", 2, [](inference::InferenceOptions& o) { o.geometry.solver.use_orientation = false; }});
     c.push_back({"priors", "no 3D smoothness", 3, [](inference::InferenceOptions& o) { o.geometry.solver.use_smoothness = false; }});
     c.push_back({"priors", "no floor contacts", 5, [](inference::InferenceOptions& o) { o.geometry.contact_weight = 0; }});
+    c.push_back({"priors", "no depth transfer", 7, [](inference::InferenceOptions& o) { o.geometry.transfer_weight = 0; }});
+    c.push_back({"priors", "transfer only", 8, [](inference::InferenceOptions& o) {
+                   o.geometry.box_weight = o.geometry.contact_weight = 0;
+                 }});
     c.push_back({"priors", "no box", 6, [](inference::InferenceOptions& o) { o.geometry.box_weight = 0; }});
     c.push_back({"priors", "data term only", 4, [](inference::InferenceOptions& o) {
                    o.geometry.solver.use_manhattan = o.geometry.solver.use_orientation = o.geometry.solver.use_smoothness = false;
@@ -312,7 +328,7 @@ CLI::App* add_bench_geometry_command(CLI::App& bench, GeometryBenchArgs& a) {
   cmd->add_option("--spp", a.options.spp, "Samples per pixel of the photos")->check(CLI::PositiveNumber);
   cmd->add_option("--timing-width", a.options.timing_width, "Also time the default pipeline at this width, 4:3 (0: skip)")
       ->check(CLI::NonNegativeNumber);
-  cmd->add_option("--sweeps", a.sweeps, "Comma-separated subset of camera,resolution,iterations,priors (default: all)");
+  cmd->add_option("--sweeps", a.sweeps, "Comma-separated subset of camera,resolution,iterations,transfer,priors (default: all)");
   cmd->add_option("--plot", a.options.plot_dir, "Write PNG plots (gnuplot) to this folder");
   cmd->add_flag("--json", a.json_out, "Machine-readable output");
   return cmd;
@@ -327,7 +343,7 @@ int run_bench_geometry_command(GeometryBenchArgs a) {
   for (std::string s; std::getline(sweeps, s, ',');)
     if (!s.empty()) a.options.sweeps.push_back(s);
   for (const auto& s : a.options.sweeps)
-    if (s != "camera" && s != "resolution" && s != "iterations" && s != "priors")
+    if (s != "camera" && s != "resolution" && s != "iterations" && s != "transfer" && s != "priors")
       throw std::invalid_argument("--sweeps: unknown sweep '" + s + "'");
   a.options.quiet = a.json_out;
   const json result = run_geometry_bench(a.options);

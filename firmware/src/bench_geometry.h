@@ -18,7 +18,7 @@ struct GeometryBenchOptions {
   int width = 640, height = 480;
   int spp = 16;             // photo render samples (enough for lines and appearance)
   int timing_width = 1024;  // one more room at this size times the default pipeline (0: skip)
-  std::vector<std::string> sweeps;  // empty: all (camera, resolution, iterations, priors)
+  std::vector<std::string> sweeps;  // empty: all (camera, resolution, iterations, transfer, priors)
   std::string plot_dir;     // empty: no plots
   bool quiet = false;
 };

@@ -15,6 +15,7 @@
 #include "bench_render.h"
 #include "bench_camera.h"
 #include "bench_geometry.h"
+#include "depth_database_builder.h"
 #include "compositor.h"
 #include "progress.h"
 #include "propcam/capture/image_file.h"
@@ -499,6 +500,15 @@ int run_cli(int argc, char** argv) {
   synth->add_option("--height", synth_args.height, "Prop height in metres");
   synth->add_flag("--json", synth_args.json_out, "Machine-readable summary");
 
+  DepthDatabaseSpec depth_db_spec;
+  std::string depth_db_out;
+  auto* build_depth_db = app.add_subcommand(
+      "build-depth-db", "Render the depth-transfer database from generator scenes (scripts/build_depth_db.sh)");
+  build_depth_db->add_option("-o,--output", depth_db_out, "Database file to write")->required();
+  build_depth_db->add_option("--rooms", depth_db_spec.rooms, "Rooms")->check(CLI::PositiveNumber);
+  build_depth_db->add_option("--first-seed", depth_db_spec.first_seed, "First generator seed");
+  build_depth_db->add_option("--spp", depth_db_spec.spp, "Samples per pixel of the photos")->check(CLI::PositiveNumber);
+
   RenderArgs render_args;
   auto* render_cmd = app.add_subcommand("render", "Render a SCENE.json (camera, OBJ meshes, lights) to an image");
   render_cmd->add_option("scene", render_args.scene, "Scene file (see render/README.md)")->required();
@@ -573,6 +583,12 @@ int run_cli(int argc, char** argv) {
     if (*composite) return cmd_composite(comp);
     if (*props) return cmd_props(props_json);
     if (*synth) return cmd_synth(synth_args);
+    if (*build_depth_db) {
+      const inference::DepthDatabase db = build_depth_database(depth_db_spec);
+      db.save(depth_db_out);
+      std::fprintf(stderr, "wrote %zu examples to %s\n", db.size(), depth_db_out.c_str());
+      return 0;
+    }
     if (*view) return cmd_view(view_args);
     if (*render_cmd) return cmd_render(render_args);
     if (*bench_render) {

@@ -3,6 +3,10 @@
 #include "propcam/inference/contact_depth.h"
 
 #include <algorithm>
+#include <cmath>
+#include <map>
+#include <memory>
+#include <mutex>
 #include <stdexcept>
 
 
@@ -30,6 +34,33 @@ render::PinholeCamera pinhole_from(const CameraEstimate& cam, int width, int hei
   s.R_world_from_cam = cam.R_world_from_cam;
   s.camera_height_m = camera_height_m;
   return s.camera();
+}
+
+// Databases stay loaded once read (1.5 MB); a missing or broken one is
+// reported and the solve goes on without transfer.
+std::shared_ptr<const DepthDatabase> cached_depth_database(const std::string& requested, StageReport& report) {
+  static std::mutex mutex;
+  static std::map<std::string, std::shared_ptr<const DepthDatabase>> cache;
+  const std::string path = requested.empty() ? default_depth_database_path() : requested;
+  report.stage = "depth_transfer";
+  std::lock_guard lock(mutex);
+  if (auto it = cache.find(path); it != cache.end()) return it->second;
+  try {
+    auto db = std::make_shared<const DepthDatabase>(DepthDatabase::load(path));
+    cache[path] = db;
+    return db;
+  } catch (const std::exception& e) {
+    report.usable = false;
+    report.why = std::string("no depth transfer: ") + e.what();
+    return nullptr;
+  }
+}
+
+// Transferred depth is made at twice the solve grid: finer would only
+// resample the database's 64x48 maps.
+cv::Size transfer_size(const render::PinholeCamera& camera, int solve_width) {
+  const int w = std::clamp(2 * solve_width, 1, camera.width);
+  return {w, std::max(1, static_cast<int>(std::lround(static_cast<double>(w) * camera.height / camera.width)))};
 }
 
 }  // namespace
@@ -87,6 +118,22 @@ GeometryEstimate infer_geometry(const cv::Mat& photo, const InferenceOptions& op
     problem.targets.push_back({g.layout.depth, options.geometry.box_weight, {}});
     problem.sky_mask = g.sky_mask;
     if (options.geometry.solver.use_orientation) problem.orientation_labels = g.orientation;
+    if (options.geometry.transfer_weight > 0) {
+      stage("depth_transfer");
+      StageReport report;
+      if (const auto db = cached_depth_database(options.geometry.depth_database, report)) {
+        try {
+          TransferredDepth t = transfer_depth(photo, g.pinhole, options.camera_height_m, g.indoor, *db,
+                                              transfer_size(g.pinhole, options.geometry.solver.width), options.geometry.transfer);
+          problem.targets.push_back({t.median, options.geometry.transfer_weight, {}});
+          report = t.report;
+        } catch (const std::invalid_argument& e) {  // e.g. no example of this scene class
+          report.usable = false;
+          report.why = std::string("no depth transfer: ") + e.what();
+        }
+      }
+      g.reports.push_back(report);
+    }
     if (options.geometry.contact_weight > 0) {
       ContactDepth contact = contact_depth_target(g.orientation, g.pinhole, g.layout.normals);
       problem.targets.push_back({contact.depth, options.geometry.contact_weight, contact.confidence});

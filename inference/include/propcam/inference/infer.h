@@ -8,6 +8,7 @@
 
 #include "propcam/inference/camera.h"
 #include "propcam/inference/depth_solve.h"
+#include "propcam/inference/depth_transfer.h"
 #include "propcam/inference/layout.h"
 #include "propcam/inference/orientation_map.h"
 #include "propcam/inference/lighting.h"
@@ -25,6 +26,9 @@ struct GeometryOptions {
   bool class_weights = true;      // priors' weights by scene class (DepthPriorWeights::indoor/outdoor)
   double box_weight = 1.0;        // data-term weight of the box layout's depth
   double contact_weight = 2.0;    // data-term weight of the floor-contact depth (contact_depth.h); 0: off
+  double transfer_weight = 1.0;   // data-term weight of the depth-transfer median (depth_transfer.h); 0: off
+  DepthTransferOptions transfer;
+  std::string depth_database;     // empty: default_depth_database_path()
   DepthSolveOptions solver;
   OrientationMapOptions orientation;  // E_o's labels and the floor contacts
   SupportPlaneOptions support;

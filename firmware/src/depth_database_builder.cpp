@@ -1,0 +1,42 @@
+#include "depth_database_builder.h"
+
+#include <opencv2/imgproc.hpp>
+
+#include "progress.h"
+#include "propcam/render/depth_mesh.h"
+#include "synthetic_truth.h"
+
+namespace propcam::firmware {
+
+inference::DepthDatabase build_depth_database(const DepthDatabaseSpec& spec) {
+  Progress progress(spec.quiet);
+  inference::DepthDatabase db;
+  render::RenderSettings settings;
+  settings.samples_per_pixel = spec.spp;
+  for (int i = 0; i < spec.rooms; ++i) {
+    render::SyntheticRoomSpec room;
+    room.width = spec.photo_width;
+    room.height = spec.photo_height;
+    room.seed = spec.first_seed + static_cast<uint64_t>(i);
+    if (i % 20 == 0) progress.stage("room " + std::to_string(i + 1) + " of " + std::to_string(spec.rooms));
+    const SyntheticShot shot = shoot_synthetic_room(room, settings);
+    inference::DepthExample e;
+    e.descriptor = inference::appearance_descriptor(shot.photo_linear);
+    // Resampled by area in inverse depth (affine over planes); nothing hit is sky.
+    cv::Mat inv(shot.truth.depth.size(), CV_32F);
+    for (int y = 0; y < inv.rows; ++y)
+      for (int x = 0; x < inv.cols; ++x) {
+        const float d = shot.truth.depth.at<float>(y, x);
+        inv.at<float>(y, x) = d > 0 ? 1.f / d : static_cast<float>(1.0 / render::kSkyDepthM);
+      }
+    cv::resize(inv, inv, cv::Size(spec.depth_width, spec.depth_height), 0, 0, cv::INTER_AREA);
+    cv::divide(1.0 / shot.truth.camera_height_m, inv, e.depth);
+    e.fx_over_width = shot.truth.fx / shot.truth.width;
+    e.horizon = inference::horizon_frame(shot.truth.R_world_from_cam);
+    e.indoor = shot.truth.indoor;
+    db.add(std::move(e));
+  }
+  return db;
+}
+
+}  // namespace propcam::firmware

@@ -1,0 +1,23 @@
+// `propcam build-depth-db`: the depth-transfer database, rendered from the
+// project's own scene generator (appearance at low resolution, exact depth).
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "propcam/inference/depth_transfer.h"
+
+namespace propcam::firmware {
+
+struct DepthDatabaseSpec {
+  int rooms = 160;
+  uint64_t first_seed = 1001;  // disjoint from the seeds tests and benchmarks use (1..99)
+  int photo_width = 160, photo_height = 120;
+  int depth_width = 64, depth_height = 48;
+  int spp = 16;
+  bool quiet = false;
+};
+
+inference::DepthDatabase build_depth_database(const DepthDatabaseSpec& spec);
+
+}  // namespace propcam::firmware
