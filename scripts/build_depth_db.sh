@@ -5,4 +5,4 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 cmake --preset release >/dev/null
 cmake --build --preset release --target propcam
-build/release/firmware/propcam build-depth-db -o inference/data/depth_db.bin --rooms "${ROOMS:-160}" --first-seed 1001 "$@"
+build/release/firmware/propcam build-depth-db -o inference/data/depth_db.bin --rooms "${ROOMS:-160}" --streets "${STREETS:-120}" --first-seed 1001 "$@"

@@ -216,6 +216,15 @@ json run_geometry_bench(const GeometryBenchOptions& o) {
     SyntheticShot s = shoot_synthetic_room(spec, settings);
     shots.push_back({"room " + std::to_string(seed), s.photo_linear, s.truth});
   }
+  for (int seed = 1; seed <= o.streets; ++seed) {
+    progress.stage("rendering street " + std::to_string(seed));
+    render::SyntheticStreetSpec spec;
+    spec.width = o.width;
+    spec.height = o.height;
+    spec.seed = static_cast<uint64_t>(seed);
+    SyntheticShot s = shoot_synthetic_street(spec, settings);
+    shots.push_back({"street " + std::to_string(seed), s.photo_linear, s.truth});
+  }
   if (shots.empty()) throw std::invalid_argument("bench geometry: no scenes (--rooms and --streets are 0)");
 
   json rows = json::array();
@@ -223,16 +232,19 @@ json run_geometry_bench(const GeometryBenchOptions& o) {
     progress.stage(c.sweep + ": " + c.label);
     inference::InferenceOptions options;
     c.apply(options);
-    std::vector<Errors> rooms;
+    std::vector<Errors> all, rooms, streets;
     json scenes = json::array();
     for (const Shot& s : shots) {
       const Errors e = measure(s, options);
-      rooms.push_back(e);
+      all.push_back(e);
+      (s.truth.indoor ? rooms : streets).push_back(e);
       scenes.push_back({{"scene", s.name}, {"abs_rel", e.abs_rel}, {"normal_deg", e.normal_deg}, {"focal_rel", e.focal_rel},
                         {"vp_deg", e.vp_deg}, {"seconds", e.seconds}});
     }
     json row = {{"sweep", c.sweep}, {"label", c.label}, {"value", c.value}, {"scenes", scenes}};
-    row["all"] = errors_json(rooms);
+    row["all"] = errors_json(all);
+    if (!rooms.empty()) row["rooms"] = errors_json(rooms);
+    if (!streets.empty()) row["streets"] = errors_json(streets);
     rows.push_back(row);
   }
   json result = {{"size", {o.width, o.height}}, {"spp", o.spp}, {"rows", rows}};
@@ -262,18 +274,23 @@ std::string format_geometry_bench(const json& r) {
   std::snprintf(line, sizeof line, "Geometry on generator scenes (%dx%d): medians over scenes, time = mean per scene\n",
                 r["size"][0].get<int>(), r["size"][1].get<int>());
   out << line;
-  std::snprintf(line, sizeof line, "%-11s %-22s %8s %7s %6s %6s %8s %8s %8s %7s %8s\n", "sweep", "knob", "focal", "VP", "pitch",
-                "roll", "abs-rel", "rmse-log", "normal", "sky", "seconds");
-  out << line;
-  for (const auto& row : r["rows"]) {
-    const json& a = row["all"];
-    std::snprintf(line, sizeof line, "%-11s %-22s %7.1f%% %6.2f° %5.2f° %5.2f° %8.3f %8.3f %7.1f° %6.1f%% %8.3f\n",
-                  row["sweep"].get<std::string>().c_str(), row["label"].get<std::string>().c_str(),
-                  100 * a["focal_rel_median"].get<double>(), a["vp_deg_median"].get<double>(),
-                  a["pitch_deg_median"].get<double>(), a["roll_deg_median"].get<double>(), a["abs_rel_median"].get<double>(),
-                  a["rmse_log_median"].get<double>(), a["normal_deg_median"].get<double>(),
-                  100 * a["sky_disagreement_mean"].get<double>(), a["seconds_mean"].get<double>());
+  for (const char* group : {"rooms", "streets"}) {
+    if (!r["rows"][0].contains(group)) continue;
+    out << "\n" << group << ":\n";
+    std::snprintf(line, sizeof line, "%-11s %-22s %8s %7s %6s %6s %8s %8s %8s %7s %8s\n", "sweep", "knob", "focal", "VP",
+                  "pitch", "roll", "abs-rel", "rmse-log", "normal", "sky", "seconds");
     out << line;
+    for (const auto& row : r["rows"]) {
+      const json& a = row[group];
+      std::snprintf(line, sizeof line, "%-11s %-22s %7.1f%% %6.2f° %5.2f° %5.2f° %8.3f %8.3f %7.1f° %6.1f%% %8.3f\n",
+                    row["sweep"].get<std::string>().c_str(), row["label"].get<std::string>().c_str(),
+                    100 * a["focal_rel_median"].get<double>(), a["vp_deg_median"].get<double>(),
+                    a["pitch_deg_median"].get<double>(), a["roll_deg_median"].get<double>(),
+                    a["abs_rel_median"].get<double>(), a["rmse_log_median"].get<double>(),
+                    a["normal_deg_median"].get<double>(), 100 * a["sky_disagreement_mean"].get<double>(),
+                    a["seconds_mean"].get<double>());
+      out << line;
+    }
   }
   if (r.contains("timing")) {
     const json& t = r["timing"];
@@ -328,7 +345,7 @@ CLI::App* add_bench_geometry_command(CLI::App& bench, GeometryBenchArgs& a) {
   cmd->add_option("--spp", a.options.spp, "Samples per pixel of the photos")->check(CLI::PositiveNumber);
   cmd->add_option("--timing-width", a.options.timing_width, "Also time the default pipeline at this width, 4:3 (0: skip)")
       ->check(CLI::NonNegativeNumber);
-  cmd->add_option("--sweeps", a.sweeps, "Comma-separated subset of camera,resolution,iterations,transfer,priors (default: all)");
+  cmd->add_option("--sweeps", a.sweeps, "Comma-separated subset of default,camera,resolution,iterations,transfer,priors (default: all; the default row always runs)");
   cmd->add_option("--plot", a.options.plot_dir, "Write PNG plots (gnuplot) to this folder");
   cmd->add_flag("--json", a.json_out, "Machine-readable output");
   return cmd;
@@ -343,7 +360,7 @@ int run_bench_geometry_command(GeometryBenchArgs a) {
   for (std::string s; std::getline(sweeps, s, ',');)
     if (!s.empty()) a.options.sweeps.push_back(s);
   for (const auto& s : a.options.sweeps)
-    if (s != "camera" && s != "resolution" && s != "iterations" && s != "transfer" && s != "priors")
+    if (s != "default" && s != "camera" && s != "resolution" && s != "iterations" && s != "transfer" && s != "priors")
       throw std::invalid_argument("--sweeps: unknown sweep '" + s + "'");
   a.options.quiet = a.json_out;
   const json result = run_geometry_bench(a.options);

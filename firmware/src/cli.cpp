@@ -295,18 +295,19 @@ struct SynthArgs {
   int spp = 64;
   double height = 0;
   bool json_out = false;
+  bool street = false;
 };
 
 int cmd_synth(const SynthArgs& a) {
   Progress progress(a.json_out);
-  render::SyntheticRoomSpec spec;
-  if (!parse_pair(a.size, spec.width, spec.height, 'x') || spec.width < 16 || spec.height < 16)
+  int width = 0, height = 0;
+  if (!parse_pair(a.size, width, height, 'x') || width < 16 || height < 16)
     throw std::invalid_argument("--size expects WxH of at least 16x16");
-  spec.seed = a.seed;
   render::RenderSettings settings;
   settings.samples_per_pixel = a.spp;
   settings.progress = progress.fraction_printer("synth photo");
-  const SyntheticShot shot = shoot_synthetic_room(spec, settings);
+  const SyntheticShot shot = a.street ? shoot_synthetic_street({width, height, a.seed, 0.0, 1.5}, settings)
+                                      : shoot_synthetic_room({width, height, a.seed, 0.0, 1.5}, settings);
   fs::create_directories(a.out);
   capture::write_image((fs::path(a.out) / "photo.png").string(), shot.photo_linear);
   capture::write_image((fs::path(a.out) / "photo.exr").string(), shot.photo_linear);
@@ -491,7 +492,7 @@ int run_cli(int argc, char** argv) {
   props->add_flag("--json", props_json, "Machine-readable output");
 
   SynthArgs synth_args;
-  auto* synth = app.add_subcommand("synth", "Render a synthetic room with exact ground truth (test fixtures)");
+  auto* synth = app.add_subcommand("synth", "Render a synthetic room or street with exact ground truth (test fixtures)");
   synth->add_option("-o,--output", synth_args.out, "Folder to write")->required();
   synth->add_option("--seed", synth_args.seed, "Room seed");
   synth->add_option("--size", synth_args.size, "WxH");
@@ -499,13 +500,15 @@ int run_cli(int argc, char** argv) {
   synth->add_option("--prop", synth_args.prop, "Also render the room with this prop truly inserted");
   synth->add_option("--height", synth_args.height, "Prop height in metres");
   synth->add_flag("--json", synth_args.json_out, "Machine-readable summary");
+  synth->add_flag("--street", synth_args.street, "A street (sun and sky) instead of a room");
 
   DepthDatabaseSpec depth_db_spec;
   std::string depth_db_out;
   auto* build_depth_db = app.add_subcommand(
       "build-depth-db", "Render the depth-transfer database from generator scenes (scripts/build_depth_db.sh)");
   build_depth_db->add_option("-o,--output", depth_db_out, "Database file to write")->required();
-  build_depth_db->add_option("--rooms", depth_db_spec.rooms, "Rooms")->check(CLI::PositiveNumber);
+  build_depth_db->add_option("--rooms", depth_db_spec.rooms, "Rooms")->check(CLI::NonNegativeNumber);
+  build_depth_db->add_option("--streets", depth_db_spec.streets, "Streets")->check(CLI::NonNegativeNumber);
   build_depth_db->add_option("--first-seed", depth_db_spec.first_seed, "First generator seed");
   build_depth_db->add_option("--spp", depth_db_spec.spp, "Samples per pixel of the photos")->check(CLI::PositiveNumber);
 

@@ -13,13 +13,14 @@ inference::DepthDatabase build_depth_database(const DepthDatabaseSpec& spec) {
   inference::DepthDatabase db;
   render::RenderSettings settings;
   settings.samples_per_pixel = spec.spp;
-  for (int i = 0; i < spec.rooms; ++i) {
-    render::SyntheticRoomSpec room;
-    room.width = spec.photo_width;
-    room.height = spec.photo_height;
-    room.seed = spec.first_seed + static_cast<uint64_t>(i);
-    if (i % 20 == 0) progress.stage("room " + std::to_string(i + 1) + " of " + std::to_string(spec.rooms));
-    const SyntheticShot shot = shoot_synthetic_room(room, settings);
+  const int total = spec.rooms + spec.streets;
+  for (int i = 0; i < total; ++i) {
+    const bool street = i >= spec.rooms;
+    const uint64_t seed = spec.first_seed + static_cast<uint64_t>(street ? i - spec.rooms : i);
+    if (i % 20 == 0) progress.stage("scene " + std::to_string(i + 1) + " of " + std::to_string(total));
+    const SyntheticShot shot =
+        street ? shoot_synthetic_street({spec.photo_width, spec.photo_height, seed, 0.0, 1.5}, settings)
+               : shoot_synthetic_room({spec.photo_width, spec.photo_height, seed, 0.0, 1.5}, settings);
     inference::DepthExample e;
     e.descriptor = inference::appearance_descriptor(shot.photo_linear);
     // Resampled by area in inverse depth (affine over planes); nothing hit is sky.
@@ -27,7 +28,7 @@ inference::DepthDatabase build_depth_database(const DepthDatabaseSpec& spec) {
     for (int y = 0; y < inv.rows; ++y)
       for (int x = 0; x < inv.cols; ++x) {
         const float d = shot.truth.depth.at<float>(y, x);
-        inv.at<float>(y, x) = d > 0 ? 1.f / d : static_cast<float>(1.0 / render::kSkyDepthM);
+        inv.at<float>(y, x) = d > 0 && d < render::kSkyDepthM ? 1.f / d : static_cast<float>(1.0 / render::kSkyDepthM);
       }
     cv::resize(inv, inv, cv::Size(spec.depth_width, spec.depth_height), 0, 0, cv::INTER_AREA);
     cv::divide(1.0 / shot.truth.camera_height_m, inv, e.depth);

@@ -11,6 +11,7 @@ namespace propcam::firmware {
 
 struct DepthDatabaseSpec {
   int rooms = 160;
+  int streets = 120;
   uint64_t first_seed = 1001;  // disjoint from the seeds tests and benchmarks use (1..99)
   int photo_width = 160, photo_height = 120;
   int depth_width = 64, depth_height = 48;

@@ -1,5 +1,6 @@
 #include "synthetic_truth.h"
 
+#include "propcam/render/depth_mesh.h"
 #include "propcam/render/scene.h"
 
 namespace propcam::firmware {
@@ -43,6 +44,56 @@ SyntheticShot shoot_synthetic_room(const render::SyntheticRoomSpec& spec, const 
   inference::StageReport r;
   r.stage = "ground_truth";
   r.why = "synthetic room seed " + std::to_string(spec.seed);
+  t.reports.push_back(r);
+  return shot;
+}
+
+SyntheticShot shoot_synthetic_street(const render::SyntheticStreetSpec& spec, const render::RenderSettings& settings) {
+  const render::SyntheticStreet street = render::make_synthetic_street(spec);
+  SyntheticShot shot;
+  shot.room.camera = street.camera;
+  shot.room.room = street.scene;
+  shot.room.lights = street.lights;
+  shot.room.room_min = street.scene_min;
+  shot.room.room_max = street.scene_max;
+  shot.room.free_floor_point = street.free_ground_point;
+  render::Scene scene;
+  scene.add_mesh(street.scene, render::Layer::Background);
+  scene.commit();
+  shot.photo_linear = render::render_image(scene, street.camera, street.lights, settings, &shot.photo_stats);
+  const render::PrimaryBuffers gt = render::render_primary_buffers(scene, street.camera, false);
+  inference::SceneModel& t = shot.truth;
+  const render::PinholeCamera& cam = street.camera;
+  t.width = cam.width;
+  t.height = cam.height;
+  t.fx = cam.fx;
+  t.fy = cam.fy;
+  t.cx = cam.cx;
+  t.cy = cam.cy;
+  t.R_world_from_cam = cam.R_world_from_cam;
+  t.camera_height_m = cam.center_world.y();
+  t.depth = gt.depth.clone();
+  t.albedo = gt.albedo;
+  t.normals = gt.normal.clone();
+  t.indoor = false;
+  for (int y = 0; y < cam.height; ++y)
+    for (int x = 0; x < cam.width; ++x)
+      if (!(t.depth.at<float>(y, x) > 0)) {  // nothing hit: sky
+        t.depth.at<float>(y, x) = static_cast<float>(render::kSkyDepthM);
+        const Eigen::Vector3d d = -cam.ray_direction(x, y);
+        t.normals.at<cv::Vec3f>(y, x) = cv::Vec3f(static_cast<float>(d.x()), static_cast<float>(d.y()), static_cast<float>(d.z()));
+      }
+  for (const auto& sun : street.lights.suns) {
+    inference::LightSource l;
+    l.type = inference::LightSource::Type::Sun;
+    l.direction = sun.direction.cast<double>().normalized();
+    l.intensity = sun.irradiance.cast<double>();
+    t.lights.push_back(l);
+  }
+  t.planes.push_back({"floor", Eigen::Vector3d::UnitY(), 0.0});
+  inference::StageReport r;
+  r.stage = "ground_truth";
+  r.why = "synthetic street seed " + std::to_string(spec.seed);
   t.reports.push_back(r);
   return shot;
 }

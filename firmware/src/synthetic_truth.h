@@ -9,6 +9,7 @@
 #include "propcam/render/path_tracer.h"
 #include "propcam/render/placement.h"
 #include "propcam/render/synthetic_room.h"
+#include "propcam/render/synthetic_street.h"
 
 namespace propcam::firmware {
 
@@ -20,6 +21,10 @@ struct SyntheticShot {
 };
 
 SyntheticShot shoot_synthetic_room(const render::SyntheticRoomSpec& spec, const render::RenderSettings& settings);
+
+// A street the same way: `room` holds the street (its mesh, camera, sun and
+// sky, free ground point); sky pixels of the truth have depth kSkyDepthM.
+SyntheticShot shoot_synthetic_street(const render::SyntheticStreetSpec& spec, const render::RenderSettings& settings);
 
 // Pixel where the room's free floor point is seen (for --at).
 Eigen::Vector2d free_floor_pixel(const render::SyntheticRoom& room);

@@ -1,5 +1,7 @@
 #include "propcam/render/synthetic_room.h"
 
+#include "propcam/render/mesh_shapes.h"
+
 #include <cmath>
 #include <numbers>
 #include <opencv2/imgproc.hpp>
@@ -9,31 +11,6 @@ namespace propcam::render {
 namespace {
 
 constexpr double kDegToRad = std::numbers::pi / 180.0;
-
-// Adds the quad a-b-c-d (counter-clockwise seen from the side it faces) with
-// uvs in metres divided by `metres_per_tile`.
-void add_quad(Mesh& mesh, const Eigen::Vector3f& a, const Eigen::Vector3f& b, const Eigen::Vector3f& c,
-              const Eigen::Vector3f& d, int material, float metres_per_tile) {
-  const int base = static_cast<int>(mesh.positions.size());
-  const Eigen::Vector3f eu = (b - a), ev = (d - a);
-  const float lu = eu.norm() / metres_per_tile, lv = ev.norm() / metres_per_tile;
-  mesh.positions.insert(mesh.positions.end(), {a, b, c, d});
-  mesh.uvs.insert(mesh.uvs.end(), {{0.f, lv}, {lu, lv}, {lu, 0.f}, {0.f, 0.f}});
-  mesh.triangles.emplace_back(base, base + 1, base + 2);
-  mesh.triangles.emplace_back(base, base + 2, base + 3);
-  mesh.material_ids.insert(mesh.material_ids.end(), {material, material});
-}
-
-// Axis-aligned box with outward faces (for furniture).
-void add_box(Mesh& mesh, const Eigen::Vector3f& lo, const Eigen::Vector3f& hi, int material) {
-  const float x0 = lo.x(), y0 = lo.y(), z0 = lo.z(), x1 = hi.x(), y1 = hi.y(), z1 = hi.z();
-  using V = Eigen::Vector3f;
-  add_quad(mesh, V(x0, y0, z1), V(x1, y0, z1), V(x1, y1, z1), V(x0, y1, z1), material, 1.f);  // +z
-  add_quad(mesh, V(x1, y0, z0), V(x0, y0, z0), V(x0, y1, z0), V(x1, y1, z0), material, 1.f);  // -z
-  add_quad(mesh, V(x1, y0, z1), V(x1, y0, z0), V(x1, y1, z0), V(x1, y1, z1), material, 1.f);  // +x
-  add_quad(mesh, V(x0, y0, z0), V(x0, y0, z1), V(x0, y1, z1), V(x0, y1, z0), material, 1.f);  // -x
-  add_quad(mesh, V(x0, y1, z1), V(x1, y1, z1), V(x1, y1, z0), V(x0, y1, z0), material, 1.f);  // +y
-}
 
 cv::Mat tile_texture(const cv::Vec3f& base, std::mt19937& rng) {
   // 512 px = one 1.2 m tile period: 2x2 tiles with grout lines in both

@@ -1,0 +1,200 @@
+#include "propcam/render/synthetic_street.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <random>
+
+#include "propcam/render/mesh_shapes.h"
+
+namespace propcam::render {
+namespace {
+
+using V = Eigen::Vector3f;
+constexpr double kDegToRad = std::numbers::pi / 180.0;
+constexpr float kStoreyM = 3.2f;
+constexpr float kBayM = 2.6f;          // window spacing along a facade
+constexpr float kStreetStartZ = 15.f;  // the street runs from behind the camera ...
+constexpr float kStreetEndZ = -160.f;  // ... far ahead (-Z)
+constexpr float kWindowInset = 0.02f;  // windows sit just in front of the facade (no z-fighting)
+// The sun's irradiance and the sky's radiance scale (relative units of the
+// renderer): a sunlit 0.5-albedo wall is about 4x its shadowed neighbour.
+constexpr float kSunIrradiance = 3.0f;
+constexpr float kSkyRadiance = 0.35f;
+constexpr int kSkyWidth = 128, kSkyHeight = 64;
+
+Material plain(const std::string& name, const Eigen::Vector3f& albedo) {
+  Material m;
+  m.name = name;
+  m.albedo = albedo;
+  return m;
+}
+
+// A blue sky brighter at the horizon, the ground's bounce below it.
+cv::Mat sky_latlong(float overcast) {
+  cv::Mat img(kSkyHeight, kSkyWidth, CV_32FC3);
+  for (int y = 0; y < kSkyHeight; ++y)
+    for (int x = 0; x < kSkyWidth; ++x) {
+      const Eigen::Vector3f d = EnvironmentLight::uv_to_direction((x + 0.5f) / kSkyWidth, (y + 0.5f) / kSkyHeight);
+      Eigen::Vector3f c;
+      if (d.y() >= 0) {
+        const float t = std::sqrt(d.y());
+        const Eigen::Vector3f horizon(0.80f, 0.88f, 1.0f), zenith(0.25f, 0.45f, 0.95f), grey(0.85f, 0.87f, 0.9f);
+        c = (1 - overcast) * ((1 - t) * horizon + t * zenith) + overcast * grey;
+      } else {
+        c = Eigen::Vector3f(0.25f, 0.24f, 0.22f);
+      }
+      c *= kSkyRadiance;
+      img.at<cv::Vec3f>(y, x) = cv::Vec3f(c.x(), c.y(), c.z());
+    }
+  return img;
+}
+
+struct Materials {
+  int road, sidewalk, kerb, window, door, cornice, car, first_facade;
+};
+
+// One building's facade facing the street at x = face_x (normal along
+// `side`, +1: faces +X), spanning [z0, z1] (z0 > z1), `storeys` high.
+void add_building(Mesh& m, const Materials& mat, int facade, float face_x, float side, float z0, float z1, int storeys,
+                  float depth, std::mt19937_64& rng) {
+  std::uniform_real_distribution<float> unit(0.f, 1.f);
+  const float h = storeys * kStoreyM;
+  const float back = face_x - side * depth;
+  const V lo(std::min(face_x, back), 0, z1), hi(std::max(face_x, back), h, z0);
+  add_box(m, lo, hi, facade);
+  // Cornice: a ledge along the roofline, sticking out towards the street.
+  const float ledge = 0.35f;
+  add_box(m, V(std::min(face_x, face_x + side * ledge), h - 0.4f, z1), V(std::max(face_x, face_x + side * ledge), h, z0),
+          mat.cornice);
+  // Windows on every storey above the ground floor, a door and shop windows below.
+  const float fx = face_x + side * kWindowInset;
+  const int bays = std::max(1, static_cast<int>((z0 - z1) / kBayM));
+  const float bay = (z0 - z1) / bays;
+  const float win_w = bay * (0.45f + 0.2f * unit(rng)), win_h = 1.2f + 0.4f * unit(rng);
+  auto quad_on_facade = [&](float zc, float y0, float y1, float w, int material) {
+    const float za = zc + 0.5f * w, zb = zc - 0.5f * w;
+    if (side > 0) add_quad(m, V(fx, y0, za), V(fx, y0, zb), V(fx, y1, zb), V(fx, y1, za), material, 1.f);
+    else add_quad(m, V(fx, y0, zb), V(fx, y0, za), V(fx, y1, za), V(fx, y1, zb), material, 1.f);
+  };
+  for (int b = 0; b < bays; ++b) {
+    const float zc = z0 - (b + 0.5f) * bay;
+    for (int s = 1; s < storeys; ++s) quad_on_facade(zc, s * kStoreyM + 0.8f, s * kStoreyM + 0.8f + win_h, win_w, mat.window);
+    quad_on_facade(zc, 0.f, 2.2f, b == bays / 2 ? 1.2f : win_w * 1.2f, b == bays / 2 ? mat.door : mat.window);
+  }
+}
+
+}  // namespace
+
+SyntheticStreet make_synthetic_street(const SyntheticStreetSpec& spec) {
+  std::mt19937_64 rng(spec.seed * 0x9E3779B97F4A7C15ull + 77);
+  std::uniform_real_distribution<float> unit(0.f, 1.f);
+  auto between = [&](float a, float b) { return a + (b - a) * unit(rng); };
+  SyntheticStreet out;
+  Mesh& m = out.scene;
+  Materials mat{};
+  m.materials.push_back(plain("road", {0.12f, 0.12f, 0.13f}));
+  m.materials.push_back(plain("sidewalk", {0.45f, 0.44f, 0.42f}));
+  m.materials.push_back(plain("kerb", {0.6f, 0.6f, 0.58f}));
+  m.materials.push_back(plain("window", {0.05f, 0.06f, 0.08f}));
+  m.materials.push_back(plain("door", {0.2f, 0.12f, 0.07f}));
+  m.materials.push_back(plain("cornice", {0.75f, 0.74f, 0.7f}));
+  m.materials.push_back(plain("car", {between(0.1f, 0.7f), between(0.1f, 0.5f), between(0.1f, 0.5f)}));
+  mat = {0, 1, 2, 3, 4, 5, 6, static_cast<int>(m.materials.size())};
+  const int facades = 5;
+  for (int i = 0; i < facades; ++i) {
+    const float tone = between(0.35f, 0.8f);
+    m.materials.push_back(plain("facade", {tone * between(0.85f, 1.1f), tone * between(0.8f, 1.f), tone * between(0.7f, 0.95f)}));
+  }
+
+  // The street runs along Z; road |x| < w/2, sidewalks beyond, buildings behind them.
+  const float road_half = between(4.f, 15.f);
+  const float walk = between(2.f, 4.f);
+  const bool left_open = unit(rng) < 0.2f;  // a square or a park edge on one side
+  const bool crossing = unit(rng) < 0.5f;
+  const float cross_z = between(-60.f, -25.f), cross_w = between(8.f, 16.f);
+  add_quad(m, V(-road_half, 0, kStreetStartZ), V(road_half, 0, kStreetStartZ), V(road_half, 0, kStreetEndZ),
+           V(-road_half, 0, kStreetEndZ), mat.road, 2.f);
+  const float far_x = road_half + walk + 60.f;
+  for (float side : {-1.f, 1.f}) {
+    const float x_in = side * road_half, x_out = side * (road_half + walk + 40.f);
+    const V a(std::min(x_in, x_out), 0.f, kStreetStartZ), b(std::max(x_in, x_out), 0.f, kStreetEndZ);
+    add_quad(m, V(a.x(), 0.005f, a.z()), V(b.x(), 0.005f, a.z()), V(b.x(), 0.005f, b.z()), V(a.x(), 0.005f, b.z()),
+             mat.sidewalk, 1.5f);
+    add_box(m, V(std::min(x_in, x_in + side * 0.3f), 0, kStreetEndZ), V(std::max(x_in, x_in + side * 0.3f), 0.12f, kStreetStartZ),
+            mat.kerb);
+    if (side < 0 && left_open) continue;
+    // A row of buildings with small setbacks; a gap where a crossing street runs.
+    float z = kStreetStartZ;
+    while (z > kStreetEndZ + 5.f) {
+      const float width = between(8.f, 25.f);
+      float z1 = std::max(z - width, kStreetEndZ);
+      if (crossing && z > cross_z && z1 < cross_z) z1 = cross_z;
+      if (crossing && z <= cross_z && z > cross_z - cross_w) {
+        z = cross_z - cross_w;
+        continue;
+      }
+      const float face = side * (road_half + walk + between(0.f, 1.5f));
+      const int storeys = 2 + static_cast<int>(unit(rng) * 7.f);
+      add_building(m, mat, mat.first_facade + static_cast<int>(unit(rng) * facades) % facades, face, -side, z, z1, storeys,
+                   between(8.f, 14.f), rng);
+      z = z1;
+    }
+  }
+  // Parked cars along the kerbs.
+  for (int i = 0; i < 6; ++i) {
+    const float side = unit(rng) < 0.5f ? -1.f : 1.f;
+    const float z = between(-70.f, -16.f);  // clear of the free ground point
+    const float x = side * (road_half - 1.2f);
+    add_box(m, V(x - 0.9f, 0, z - 2.1f), V(x + 0.9f, 1.5f, z + 2.1f), mat.car);
+  }
+  m.compute_vertex_normals();
+  m.normals.clear();  // flat shading
+  out.scene_min = V(-far_x, 0, kStreetEndZ);
+  out.scene_max = V(far_x, 40.f, kStreetStartZ);
+
+  // Sun and sky.
+  const float overcast = unit(rng) < 0.25f ? between(0.5f, 0.9f) : 0.f;
+  const double elevation = between(12.f, 65.f) * kDegToRad, azimuth = between(0.f, 360.f) * kDegToRad;
+  SunLight sun;
+  sun.direction = V(static_cast<float>(std::cos(elevation) * std::sin(azimuth)), static_cast<float>(std::sin(elevation)),
+                    static_cast<float>(std::cos(elevation) * std::cos(azimuth)));
+  sun.irradiance = V(1.f, 0.95f, 0.85f) * kSunIrradiance * (1.f - overcast);
+  out.lights.suns.push_back(sun);
+  out.lights.environment = std::make_shared<EnvironmentLight>(sky_latlong(overcast));
+
+  // Camera on the sidewalk or the road's edge, looking down the street,
+  // diagonally or across it.
+  PinholeCamera& cam = out.camera;
+  cam.width = spec.width;
+  cam.height = spec.height;
+  const double hfov = spec.horizontal_fov_deg > 0 ? spec.horizontal_fov_deg : between(50.f, 75.f);
+  cam.fx = cam.fy = spec.width / 2.0 / std::tan(hfov * kDegToRad / 2.0);
+  cam.cx = (spec.width - 1) / 2.0;
+  cam.cy = (spec.height - 1) / 2.0;
+  const float view = unit(rng);
+  const double yaw = (view < 0.55f ? between(-25.f, 25.f) : view < 0.85f ? between(30.f, 55.f) * (unit(rng) < 0.5f ? -1 : 1)
+                                                                         : between(65.f, 85.f) * (unit(rng) < 0.5f ? -1 : 1)) *
+                     kDegToRad;
+  const double pitch = between(-10.f, 10.f) * kDegToRad, roll = between(-3.f, 3.f) * kDegToRad;
+  const Eigen::Vector3d forward(-std::sin(yaw) * std::cos(pitch), std::sin(pitch), -std::cos(yaw) * std::cos(pitch));
+  const Eigen::Vector3d right0 = forward.cross(Eigen::Vector3d::UnitY()).normalized();
+  const Eigen::Vector3d down0 = forward.cross(right0);
+  cam.R_world_from_cam.col(0) = std::cos(roll) * right0 + std::sin(roll) * down0;
+  cam.R_world_from_cam.col(1) = -std::sin(roll) * right0 + std::cos(roll) * down0;
+  cam.R_world_from_cam.col(2) = forward;
+  // Looking across, stand on the far sidewalk so the facade is not at arm's length.
+  const double cam_x = std::abs(yaw) > 60 * kDegToRad ? -std::copysign(road_half + 1.0, std::sin(-yaw)) : between(-road_half * 0.7f, road_half * 0.7f);
+  cam.center_world = {cam_x, spec.camera_height_m, 0.0};
+  // A ground point seen low in the frame (the ray through the bottom tenth),
+  // on the road or sidewalk, clear of cars.
+  const Eigen::Vector3d low_ray = cam.ray_direction(cam.cx, 0.9 * (cam.height - 1));
+  const double reach = low_ray.y() < -1e-3 ? std::min(spec.camera_height_m / -low_ray.y(), 40.0) : 4.0;
+  Eigen::Vector3d ahead = cam.center_world + Eigen::Vector3d(low_ray.x(), 0, low_ray.z()).normalized() *
+                                                 (reach * std::hypot(low_ray.x(), low_ray.z()));
+  ahead.x() = std::clamp(ahead.x(), -(road_half + walk - 0.5), road_half + walk - 0.5);
+  out.free_ground_point = V(static_cast<float>(ahead.x()), 0.f, static_cast<float>(ahead.z()));
+  return out;
+}
+
+}  // namespace propcam::render
