@@ -108,7 +108,7 @@ GeometryEstimate infer_geometry(const cv::Mat& photo, const InferenceOptions& op
 
   stage("geometry");
   g.layout = estimate_layout(g.pinhole, g.lines, g.camera.line_labels, g.indoor, options.layout, g.sky_mask,
-                             seen_floor_points(g.orientation, g.pinhole));
+                             seen_floor_points(g.orientation, g.pinhole), g.orientation);
   g.reports.push_back(g.layout.report);
   g.depth = g.layout.depth;
   g.normals = g.layout.normals;

@@ -70,11 +70,37 @@ bool continues_downwards(const std::vector<LineSegment>& lines, const std::vecto
   return false;
 }
 
+// Which wall orientation the orientation map shows on both sides of a
+// vertical edge's lower half: 0 (normal along X), 2 (along Z) or -1 (unknown
+// or mixed). A clear majority of kMinBesideShare of the samples decides.
+constexpr double kMinBesideShare = 0.6;
+constexpr double kBesideOffsetPx = 4.0;
+
+int wall_axis_beside(const LineSegment& line, const cv::Mat& orientation, const render::PinholeCamera& camera) {
+  if (orientation.empty()) return -1;
+  const Eigen::Vector2d low = line.a.y() > line.b.y() ? line.a : line.b, high = line.a.y() > line.b.y() ? line.b : line.a;
+  const double sx = static_cast<double>(orientation.cols) / camera.width, sy = static_cast<double>(orientation.rows) / camera.height;
+  int votes[4] = {0, 0, 0, 0}, total = 0;
+  for (int k = 0; k <= 8; ++k) {
+    const Eigen::Vector2d q = low + (high - low) * (0.5 * k / 8.0);
+    for (double side : {-kBesideOffsetPx, kBesideOffsetPx}) {
+      const int x = static_cast<int>((q.x() + side) * sx), y = static_cast<int>(q.y() * sy);
+      if (x < 0 || y < 0 || x >= orientation.cols || y >= orientation.rows) continue;
+      ++total;
+      ++votes[std::min<int>(orientation.at<uint8_t>(y, x), 3)];
+    }
+  }
+  if (total == 0) return -1;
+  if (votes[1] >= kMinBesideShare * total) return 0;  // kNormalX
+  if (votes[3] >= kMinBesideShare * total) return 2;  // kNormalZ
+  return -1;
+}
+
 }  // namespace
 
 Layout estimate_layout(const render::PinholeCamera& camera, const std::vector<LineSegment>& lines,
                        const std::vector<int>& line_labels, bool indoor, const LayoutOptions& options,
-                       const cv::Mat& sky_mask, const std::vector<Vector3d>& seen_floor) {
+                       const cv::Mat& sky_mask, const std::vector<Vector3d>& seen_floor, const cv::Mat& orientation) {
   const auto start = std::chrono::steady_clock::now();
   if (!sky_mask.empty() && (sky_mask.type() != CV_8U || sky_mask.cols != camera.width || sky_mask.rows != camera.height))
     throw std::invalid_argument("estimate_layout: the sky mask must be CV_8U at the camera's size");
@@ -84,6 +110,7 @@ Layout estimate_layout(const render::PinholeCamera& camera, const std::vector<Li
   // horizon, unless another vertical edge continues it downwards (panelling
   // below a rail: that end is on the wall, not on the floor).
   std::vector<Vector3d> contacts;
+  std::vector<int> contact_axis;  // 0: on a wall facing along X, 2: along Z, -1: unknown
   for (size_t i = 0; i < lines.size() && i < line_labels.size(); ++i) {
     if (line_labels[i] != 1 || continues_downwards(lines, line_labels, i, camera.height)) continue;
     const Vector3d da = camera.ray_direction(lines[i].a.x(), lines[i].a.y());
@@ -91,7 +118,9 @@ Layout estimate_layout(const render::PinholeCamera& camera, const std::vector<Li
     const Vector3d& low = da.y() < db.y() ? da : db;
     if (low.y() > -kMinFloorRaySlope) continue;
     const Vector3d p = camera.center_world + low * (h / -low.y());
-    if (p.allFinite()) contacts.push_back(p);
+    if (!p.allFinite()) continue;
+    contacts.push_back(p);
+    contact_axis.push_back(wall_axis_beside(lines[i], orientation, camera));
   }
   // Wall distance in each horizontal direction (+X, -X, +Z, -Z) from the camera.
   const double fallback = indoor ? options.default_wall_distance_indoor_m : options.default_wall_distance_outdoor_m;
@@ -102,9 +131,16 @@ Layout estimate_layout(const render::PinholeCamera& camera, const std::vector<Li
   bool pushed_by_floor[4] = {false, false, false, false};
   for (int a = 0; a < 4; ++a) {
     std::vector<double> dist;
-    for (const Vector3d& p : contacts) {
+    for (size_t c = 0; c < contacts.size(); ++c) {
+      const Vector3d& p = contacts[c];
       const double d = (p - camera.center_world).dot(axes[a]);
-      // Count a contact for the wall it is most in front of.
+      const int axis = a < 2 ? 0 : 2;
+      // The orientation map says which wall the edge stands on; where it is
+      // silent, count the contact for the wall it is most in front of.
+      if (contact_axis[c] >= 0) {
+        if (contact_axis[c] == axis && d > 0) dist.push_back(d);
+        continue;
+      }
       const Vector3d rel = p - camera.center_world;
       const double lateral = std::abs(a < 2 ? rel.z() : rel.x());
       if (d > 0 && d >= lateral * 0.5) dist.push_back(d);

@@ -3,7 +3,9 @@
 // scene edges meet the floor,
 // giving depth and normals for every pixel. Pixels of `sky_mask` (CV_8U,
 // non-zero on sky) get render::kSkyDepthM: light, not geometry. `seen_floor`
-// (world points the orientation map sees as floor) pushes walls behind it.
+// (world points the orientation map sees as floor) pushes walls behind it;
+// `orientation` (CV_8U SurfaceOrientation, any size) says which wall a
+// vertical edge stands on.
 #pragma once
 
 #include <opencv2/core.hpp>
@@ -32,6 +34,7 @@ struct Layout {
 
 Layout estimate_layout(const render::PinholeCamera& camera, const std::vector<LineSegment>& lines,
                        const std::vector<int>& line_labels, bool indoor, const LayoutOptions& options = {},
-                       const cv::Mat& sky_mask = cv::Mat(), const std::vector<Eigen::Vector3d>& seen_floor = {});
+                       const cv::Mat& sky_mask = cv::Mat(), const std::vector<Eigen::Vector3d>& seen_floor = {},
+                       const cv::Mat& orientation = cv::Mat());
 
 }  // namespace propcam::inference
