@@ -5,17 +5,19 @@
 
 namespace propcam::firmware {
 
-SyntheticShot shoot_synthetic_room(const render::SyntheticRoomSpec& spec, const render::RenderSettings& settings) {
-  SyntheticShot shot;
-  shot.room = render::make_synthetic_room(spec);
+namespace {
+
+// Renders the photo of `shot.room` and fills the truth every generator
+// shares: the exact camera, depth, albedo, normals and the floor plane.
+// Pixels that see nothing are sky (kSkyDepthM, facing the camera).
+void render_shot(SyntheticShot& shot, const render::RenderSettings& settings, bool indoor, const std::string& why) {
   render::Scene scene;
   scene.add_mesh(shot.room.room, render::Layer::Background);
   scene.commit();
-  shot.photo_linear = render::render_image(scene, shot.room.camera, shot.room.lights, settings, &shot.photo_stats);
-  const render::PrimaryBuffers gt = render::render_primary_buffers(scene, shot.room.camera, false);
-
-  inference::SceneModel& t = shot.truth;
   const render::PinholeCamera& cam = shot.room.camera;
+  shot.photo_linear = render::render_image(scene, cam, shot.room.lights, settings, &shot.photo_stats);
+  const render::PrimaryBuffers gt = render::render_primary_buffers(scene, cam, false);
+  inference::SceneModel& t = shot.truth;
   t.width = cam.width;
   t.height = cam.height;
   t.fx = cam.fx;
@@ -24,11 +26,32 @@ SyntheticShot shoot_synthetic_room(const render::SyntheticRoomSpec& spec, const 
   t.cy = cam.cy;
   t.R_world_from_cam = cam.R_world_from_cam;
   t.camera_height_m = cam.center_world.y();
-  t.depth = gt.depth;
+  t.depth = gt.depth.clone();
   t.albedo = gt.albedo;
-  t.normals = gt.normal;
-  t.indoor = true;
+  t.normals = gt.normal.clone();
+  t.indoor = indoor;
+  for (int y = 0; y < cam.height; ++y)
+    for (int x = 0; x < cam.width; ++x)
+      if (!indoor && !(t.depth.at<float>(y, x) > 0)) {
+        t.depth.at<float>(y, x) = static_cast<float>(render::kSkyDepthM);
+        const Eigen::Vector3d d = -cam.ray_direction(x, y);
+        t.normals.at<cv::Vec3f>(y, x) = cv::Vec3f(static_cast<float>(d.x()), static_cast<float>(d.y()), static_cast<float>(d.z()));
+      }
+  t.planes.push_back({"floor", Eigen::Vector3d::UnitY(), 0.0});
+  inference::StageReport r;
+  r.stage = "ground_truth";
+  r.why = why;
+  t.reports.push_back(r);
+}
+
+}  // namespace
+
+SyntheticShot shoot_synthetic_room(const render::SyntheticRoomSpec& spec, const render::RenderSettings& settings) {
+  SyntheticShot shot;
+  shot.room = render::make_synthetic_room(spec);
+  render_shot(shot, settings, true, "synthetic room seed " + std::to_string(spec.seed));
   // Scene models put the world origin on the floor below the camera.
+  const render::PinholeCamera& cam = shot.room.camera;
   const Eigen::Vector3d shift(cam.center_world.x(), 0.0, cam.center_world.z());
   for (const auto& a : shot.room.lights.area_lights) {
     inference::LightSource l;
@@ -38,13 +61,8 @@ SyntheticShot shoot_synthetic_room(const render::SyntheticRoomSpec& spec, const 
     l.edge_v = a.edge_v.cast<double>();
     l.position = a.centre().cast<double>() - shift;
     l.intensity = a.radiance.cast<double>();
-    t.lights.push_back(l);
+    shot.truth.lights.push_back(l);
   }
-  t.planes.push_back({"floor", Eigen::Vector3d::UnitY(), 0.0});
-  inference::StageReport r;
-  r.stage = "ground_truth";
-  r.why = "synthetic room seed " + std::to_string(spec.seed);
-  t.reports.push_back(r);
   return shot;
 }
 
@@ -57,44 +75,14 @@ SyntheticShot shoot_synthetic_street(const render::SyntheticStreetSpec& spec, co
   shot.room.room_min = street.scene_min;
   shot.room.room_max = street.scene_max;
   shot.room.free_floor_point = street.free_ground_point;
-  render::Scene scene;
-  scene.add_mesh(street.scene, render::Layer::Background);
-  scene.commit();
-  shot.photo_linear = render::render_image(scene, street.camera, street.lights, settings, &shot.photo_stats);
-  const render::PrimaryBuffers gt = render::render_primary_buffers(scene, street.camera, false);
-  inference::SceneModel& t = shot.truth;
-  const render::PinholeCamera& cam = street.camera;
-  t.width = cam.width;
-  t.height = cam.height;
-  t.fx = cam.fx;
-  t.fy = cam.fy;
-  t.cx = cam.cx;
-  t.cy = cam.cy;
-  t.R_world_from_cam = cam.R_world_from_cam;
-  t.camera_height_m = cam.center_world.y();
-  t.depth = gt.depth.clone();
-  t.albedo = gt.albedo;
-  t.normals = gt.normal.clone();
-  t.indoor = false;
-  for (int y = 0; y < cam.height; ++y)
-    for (int x = 0; x < cam.width; ++x)
-      if (!(t.depth.at<float>(y, x) > 0)) {  // nothing hit: sky
-        t.depth.at<float>(y, x) = static_cast<float>(render::kSkyDepthM);
-        const Eigen::Vector3d d = -cam.ray_direction(x, y);
-        t.normals.at<cv::Vec3f>(y, x) = cv::Vec3f(static_cast<float>(d.x()), static_cast<float>(d.y()), static_cast<float>(d.z()));
-      }
+  render_shot(shot, settings, false, "synthetic street seed " + std::to_string(spec.seed));
   for (const auto& sun : street.lights.suns) {
     inference::LightSource l;
     l.type = inference::LightSource::Type::Sun;
     l.direction = sun.direction.cast<double>().normalized();
     l.intensity = sun.irradiance.cast<double>();
-    t.lights.push_back(l);
+    shot.truth.lights.push_back(l);
   }
-  t.planes.push_back({"floor", Eigen::Vector3d::UnitY(), 0.0});
-  inference::StageReport r;
-  r.stage = "ground_truth";
-  r.why = "synthetic street seed " + std::to_string(spec.seed);
-  t.reports.push_back(r);
   return shot;
 }
 

@@ -141,20 +141,11 @@ SyntheticRoom make_synthetic_room(const SyntheticRoomSpec& spec) {
   // Camera: inside the room near the back wall, looking toward the front
   // wall with some yaw and a downward pitch, as people hold cameras.
   PinholeCamera& cam = out.camera;
-  cam.width = spec.width;
-  cam.height = spec.height;
-  const double hfov = spec.horizontal_fov_deg > 0 ? spec.horizontal_fov_deg : between(50.f, 75.f);
-  cam.fx = cam.fy = spec.width / 2.0 / std::tan(hfov * kDegToRad / 2.0);
-  cam.cx = (spec.width - 1) / 2.0;
-  cam.cy = (spec.height - 1) / 2.0;
+  cam = pinhole_with_fov(spec.width, spec.height, spec.horizontal_fov_deg > 0 ? spec.horizontal_fov_deg : between(50.f, 75.f));
   const double yaw = between(-25.f, 25.f) * kDegToRad;
   const double pitch = -between(8.f, 22.f) * kDegToRad;
-  const Eigen::Vector3d forward(-std::sin(yaw) * std::cos(pitch), std::sin(pitch), -std::cos(yaw) * std::cos(pitch));
-  const Eigen::Vector3d right = forward.cross(Eigen::Vector3d::UnitY()).normalized();
-  const Eigen::Vector3d down = forward.cross(right);
-  cam.R_world_from_cam.col(0) = right;
-  cam.R_world_from_cam.col(1) = down;
-  cam.R_world_from_cam.col(2) = forward;
+  cam.R_world_from_cam = rotation_from_yaw_pitch_roll(yaw, pitch, 0.0);
+  const Eigen::Vector3d forward = cam.R_world_from_cam.col(2);
   cam.center_world = {between(x0 * 0.3f, x1 * 0.3f), spec.camera_height_m, z1 - 0.3};
 
   // A floor point about 2.5 m ahead of the camera, kept off the furniture.

@@ -166,23 +166,13 @@ SyntheticStreet make_synthetic_street(const SyntheticStreetSpec& spec) {
   // Camera on the sidewalk or the road's edge, looking down the street,
   // diagonally or across it.
   PinholeCamera& cam = out.camera;
-  cam.width = spec.width;
-  cam.height = spec.height;
-  const double hfov = spec.horizontal_fov_deg > 0 ? spec.horizontal_fov_deg : between(50.f, 75.f);
-  cam.fx = cam.fy = spec.width / 2.0 / std::tan(hfov * kDegToRad / 2.0);
-  cam.cx = (spec.width - 1) / 2.0;
-  cam.cy = (spec.height - 1) / 2.0;
+  cam = pinhole_with_fov(spec.width, spec.height, spec.horizontal_fov_deg > 0 ? spec.horizontal_fov_deg : between(50.f, 75.f));
   const float view = unit(rng);
   const double yaw = (view < 0.55f ? between(-25.f, 25.f) : view < 0.85f ? between(30.f, 55.f) * (unit(rng) < 0.5f ? -1 : 1)
                                                                          : between(65.f, 85.f) * (unit(rng) < 0.5f ? -1 : 1)) *
                      kDegToRad;
   const double pitch = between(-10.f, 10.f) * kDegToRad, roll = between(-3.f, 3.f) * kDegToRad;
-  const Eigen::Vector3d forward(-std::sin(yaw) * std::cos(pitch), std::sin(pitch), -std::cos(yaw) * std::cos(pitch));
-  const Eigen::Vector3d right0 = forward.cross(Eigen::Vector3d::UnitY()).normalized();
-  const Eigen::Vector3d down0 = forward.cross(right0);
-  cam.R_world_from_cam.col(0) = std::cos(roll) * right0 + std::sin(roll) * down0;
-  cam.R_world_from_cam.col(1) = -std::sin(roll) * right0 + std::cos(roll) * down0;
-  cam.R_world_from_cam.col(2) = forward;
+  cam.R_world_from_cam = rotation_from_yaw_pitch_roll(yaw, pitch, roll);
   // Looking across, stand on the far sidewalk so the facade is not at arm's length.
   const double cam_x = std::abs(yaw) > 60 * kDegToRad ? -std::copysign(road_half + 1.0, std::sin(-yaw)) : between(-road_half * 0.7f, road_half * 0.7f);
   cam.center_world = {cam_x, spec.camera_height_m, 0.0};

@@ -3,6 +3,9 @@
 // (Y up, metres).
 #pragma once
 
+#include <cmath>
+#include <numbers>
+
 #include <Eigen/Dense>
 
 namespace propcam::render {
@@ -41,5 +44,31 @@ struct PinholeCamera {
     return true;
   }
 };
+
+// A camera with horizontal field of view `hfov_deg`, the principal point at
+// the image centre, at the world origin looking along -Z.
+inline PinholeCamera pinhole_with_fov(int width, int height, double hfov_deg) {
+  PinholeCamera cam;
+  cam.width = width;
+  cam.height = height;
+  cam.fx = cam.fy = width / 2.0 / std::tan(hfov_deg * std::numbers::pi / 360.0);
+  cam.cx = (width - 1) / 2.0;
+  cam.cy = (height - 1) / 2.0;
+  return cam;
+}
+
+// World-from-camera rotation (camera x right, y down, z forward; world Y up)
+// of a camera turned by yaw about Y (0: looking along -Z, positive: towards
+// -X), pitched up by `pitch` and rolled by `roll` about its optical axis (radians).
+inline Eigen::Matrix3d rotation_from_yaw_pitch_roll(double yaw, double pitch, double roll) {
+  const Eigen::Vector3d forward(-std::sin(yaw) * std::cos(pitch), std::sin(pitch), -std::cos(yaw) * std::cos(pitch));
+  const Eigen::Vector3d right = forward.cross(Eigen::Vector3d::UnitY()).normalized();
+  const Eigen::Vector3d down = forward.cross(right);
+  Eigen::Matrix3d R;
+  R.col(0) = std::cos(roll) * right + std::sin(roll) * down;
+  R.col(1) = -std::sin(roll) * right + std::cos(roll) * down;
+  R.col(2) = forward;
+  return R;
+}
 
 }  // namespace propcam::render
