@@ -309,32 +309,38 @@ std::string format_geometry_bench(const json& r) {
 }
 
 void plot_geometry_bench(const json& r, const std::string& dir) {
-  std::ostringstream dat;
-  std::string last;
-  for (const auto& row : r["rows"]) {
-    const std::string sweep = row["sweep"];
-    if (sweep == "default") continue;
-    if (sweep != last) dat << (last.empty() ? "" : "\n\n") << "\"" << sweep << "\" seconds abs_rel normal_deg label\n";
-    last = sweep;
-    const json& a = row["all"];
-    std::string label = row["label"];
-    std::replace(label.begin(), label.end(), ' ', '_');
-    dat << row["value"].get<double>() << " " << a["seconds_mean"].get<double>() << " " << a["abs_rel_median"].get<double>()
-        << " " << a["normal_deg_median"].get<double>() << " \"" << label << "\"\n";
+  // One plot per scene class: rooms and streets do not share a scale.
+  for (const char* group : {"rooms", "streets"}) {
+    if (!r["rows"][0].contains(group)) continue;
+    std::ostringstream dat;
+    std::string last;
+    for (const auto& row : r["rows"]) {
+      const std::string sweep = row["sweep"];
+      if (sweep == "default") continue;
+      if (sweep != last) dat << (last.empty() ? "" : "\n\n") << "\"" << sweep << "\" seconds abs_rel normal_deg label\n";
+      last = sweep;
+      const json& a = row[group];
+      std::string label = row["label"];
+      std::replace(label.begin(), label.end(), ' ', '_');
+      dat << row["value"].get<double>() << " " << a["seconds_mean"].get<double>() << " " << a["abs_rel_median"].get<double>()
+          << " " << a["normal_deg_median"].get<double>() << " \"" << label << "\"\n";
+    }
+    const std::string name = std::string("geometry_") + group;
+    std::ostringstream gp;
+    gp << "$data << EOD\n" << dat.str() << "\nEOD\n"
+       << "set terminal png size 1100,480 noenhanced\nset grid\nset key top right\nset output '"
+       << (std::filesystem::path(dir) / (name + ".png")).string() << "'\n"
+       << "set multiplot layout 1,2 title 'Geometry on generator " << group
+       << ": error against seconds per scene (labels: the knob)'\n"
+          "set xlabel 'seconds per scene'\nset ylabel 'depth abs-rel (median)'\n"
+          "plot for [i=0:*] $data index i using 2:3 with linespoints pt 7 title columnhead(1), "
+          "$data using 2:3:5 with labels offset 0,1 font ',7' notitle\n"
+          "set ylabel 'surface-normal error (median, deg)'\n"
+          "plot for [i=0:*] $data index i using 2:4 with linespoints pt 7 title columnhead(1), "
+          "$data using 2:4:5 with labels offset 0,1 font ',7' notitle\n"
+          "unset multiplot\n";
+    run_gnuplot(dir, name + ".gp", gp.str());
   }
-  std::ostringstream gp;
-  gp << "$data << EOD\n" << dat.str() << "\nEOD\n"
-     << "set terminal png size 1100,480 noenhanced\nset grid\nset key top right\nset output '"
-     << (std::filesystem::path(dir) / "geometry.png").string() << "'\n"
-        "set multiplot layout 1,2 title 'Geometry: error against seconds per scene (labels: the knob)'\n"
-        "set xlabel 'seconds per scene'\nset ylabel 'depth abs-rel (median)'\n"
-        "plot for [i=0:*] $data index i using 2:3 with linespoints pt 7 title columnhead(1), "
-        "$data using 2:3:5 with labels offset 0,1 font ',7' notitle\n"
-        "set ylabel 'surface-normal error (median, deg)'\n"
-        "plot for [i=0:*] $data index i using 2:4 with linespoints pt 7 title columnhead(1), "
-        "$data using 2:4:5 with labels offset 0,1 font ',7' notitle\n"
-        "unset multiplot\n";
-  run_gnuplot(dir, "geometry.gp", gp.str());
 }
 
 CLI::App* add_bench_geometry_command(CLI::App& bench, GeometryBenchArgs& a) {

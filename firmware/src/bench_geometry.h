@@ -25,7 +25,8 @@ struct GeometryBenchOptions {
 
 nlohmann::json run_geometry_bench(const GeometryBenchOptions& options);
 std::string format_geometry_bench(const nlohmann::json& result);
-// One PNG per sweep: depth abs-rel and normal error against seconds. Throws if gnuplot is missing.
+// geometry_rooms.png and geometry_streets.png: depth abs-rel and normal error
+// against seconds, one line per sweep. Throws if gnuplot is missing.
 void plot_geometry_bench(const nlohmann::json& result, const std::string& dir);
 
 struct GeometryBenchArgs {

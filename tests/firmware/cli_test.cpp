@@ -197,7 +197,7 @@ TEST(Cli, BenchGeometryReportsErrorsAgainstSecondsAndPlots) {
       ASSERT_TRUE(row["all"][k].is_number()) << row["label"] << " " << k;
       EXPECT_TRUE(std::isfinite(row["all"][k].get<double>())) << row["label"] << " " << k;
     }
-  EXPECT_GT(fs::file_size(plots + "/geometry.png"), 1000u);
+  EXPECT_GT(fs::file_size(plots + "/geometry_rooms.png"), 1000u);
   EXPECT_EQ(propcam("bench geometry --sweeps nonsense").exit_code, 2);
 }
 
