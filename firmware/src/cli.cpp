@@ -65,10 +65,23 @@ void print_reports(const inference::SceneModel& scene) {
                  r.why.c_str());
 }
 
+// A calibrated lens (the board's calibration): its focal length in pixels at
+// the photo's resolution, a prior for the camera stage or, fixed, the focal length.
+struct LensPrior {
+  double focal_px = 0;  // 0: none
+  bool fixed = false;
+  void apply(inference::CameraOptions& o) const {
+    if (fixed && !(focal_px > 0)) throw std::invalid_argument("--fixed-focal needs --focal PX");
+    o.prior_focal_px = focal_px;
+    o.fixed_focal = fixed;
+  }
+};
+
 inference::SceneModel infer_with_progress(const cv::Mat& photo, const std::string& source, double camera_height,
-                                          Progress& progress) {
+                                          const LensPrior& lens, Progress& progress) {
   inference::InferenceOptions options;
   options.camera_height_m = camera_height;
+  lens.apply(options.camera);
   options.on_stage = [&](const std::string& s) { progress.stage("infer: " + s); };
   inference::SceneModel scene = inference::infer_scene(photo, options);
   scene.source_photo = source;
@@ -78,6 +91,7 @@ inference::SceneModel infer_with_progress(const cv::Mat& photo, const std::strin
 struct InferArgs {
   std::string photo, out, lines_csv, size;
   double camera_height = 1.5;
+  LensPrior lens;
   bool json_out = false;
 };
 
@@ -89,7 +103,9 @@ int cmd_infer(const InferArgs& a) {
     if (!parse_pair(a.size, w, h, 'x') || w <= 0 || h <= 0)
       throw std::invalid_argument("--lines needs --size WxH (e.g. 640x480)");
     const auto lines = inference::read_lines_csv(a.lines_csv);
-    const auto cam = inference::estimate_camera(lines, w, h);
+    inference::CameraOptions camera_options;
+    a.lens.apply(camera_options);
+    const auto cam = inference::estimate_camera(lines, w, h, camera_options);
     json out = {{"K", {{"fx", cam.fx}, {"fy", cam.fy}, {"cx", cam.cx}, {"cy", cam.cy}}},
                 {"R_world_from_cam", json::array()},
                 {"report", inference::to_json(cam.report)}};
@@ -102,7 +118,7 @@ int cmd_infer(const InferArgs& a) {
   if (a.out.empty()) throw std::invalid_argument("infer needs -o SCENE_DIR");
   progress.stage("loading " + a.photo);
   const cv::Mat photo = capture::load_photo_linear(a.photo);
-  inference::SceneModel scene = infer_with_progress(photo, a.photo, a.camera_height, progress);
+  inference::SceneModel scene = infer_with_progress(photo, a.photo, a.camera_height, a.lens, progress);
   inference::save_scene(scene, a.out);
   if (a.json_out) {
     std::cout << json{{"scene", a.out}, {"reports", reports_json(scene)}}.dump(2) << std::endl;
@@ -116,6 +132,7 @@ int cmd_infer(const InferArgs& a) {
 struct CompositeArgs {
   std::string photo, scene_dir, prop, at, out, material, albedo, save_scene;
   double height = 0, yaw = 0, camera_height = 1.5;
+  LensPrior lens;
   int spp = 16, bounces = 4;
   uint64_t seed = 0x5eed;
   bool json_out = false, explain = false, no_cull = false;
@@ -210,7 +227,7 @@ int cmd_composite(const CompositeArgs& a) {
   if (!a.scene_dir.empty()) {
     scene = inference::load_scene(a.scene_dir);
   } else {
-    scene = infer_with_progress(photo, a.photo, a.camera_height, progress);
+    scene = infer_with_progress(photo, a.photo, a.camera_height, a.lens, progress);
     if (!a.json_out) print_reports(scene);
     if (!a.save_scene.empty()) inference::save_scene(scene, a.save_scene);
   }
@@ -454,6 +471,10 @@ int run_cli(int argc, char** argv) {
   infer->add_option("--size", infer_args.size, "Image size WxH for --lines");
   infer->add_option("--camera-height", infer_args.camera_height, "Camera height above the floor in metres")
       ->check(CLI::PositiveNumber);
+  infer->add_option("--focal", infer_args.lens.focal_px,
+                    "Calibrated focal length in pixels at the photo's size (a prior for the camera stage)")
+      ->check(CLI::PositiveNumber);
+  infer->add_flag("--fixed-focal", infer_args.lens.fixed, "Use --focal as the focal length (estimate the rotation only)");
   infer->add_flag("--json", infer_args.json_out, "Machine-readable output on stdout");
 
   CompositeArgs comp;
@@ -473,6 +494,9 @@ int run_cli(int argc, char** argv) {
   composite->add_option("--albedo", comp.albedo, "Override the prop's albedo: R,G,B linear in 0..1");
   composite->add_option("--camera-height", comp.camera_height, "Camera height in metres when inferring")
       ->check(CLI::PositiveNumber);
+  composite->add_option("--focal", comp.lens.focal_px, "Calibrated focal length in pixels when inferring (a prior)")
+      ->check(CLI::PositiveNumber);
+  composite->add_flag("--fixed-focal", comp.lens.fixed, "Use --focal as the focal length when inferring");
   composite->add_option("--save-scene", comp.save_scene, "Also write the inferred scene folder here");
   composite->add_option("-o,--output", comp.out, "Composite image to write (PNG, JPEG or EXR)")->required();
   composite->add_flag("--json", comp.json_out, "Machine-readable summary on stdout");

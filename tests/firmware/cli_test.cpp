@@ -172,6 +172,23 @@ TEST(Cli, InferOnLineSegments) {
   EXPECT_EQ(propcam("infer --lines " + csv).exit_code, 2);
 }
 
+TEST(Cli, InferTakesACalibratedFocalLength) {
+  // A calibrated lens: fixed, the focal length is exactly the calibration;
+  // as a prior on lines that cannot fix it (one family), it is the prior.
+  const std::string out = temp("scene_calibrated");
+  ASSERT_EQ(propcam("infer " + fixture_photo() + " -o " + out + " --focal 512.5 --fixed-focal").exit_code, 0);
+  std::ifstream in(out + "/scene.json");
+  const json s = json::parse(in);
+  EXPECT_DOUBLE_EQ(s["K"]["fx"].get<double>(), 512.5);
+  const std::string csv = temp("lines_prior.csv");
+  std::ofstream(csv) << "x1,y1,x2,y2\n10,10,100,12\n";
+  const CliRun r = propcam("infer --lines " + csv + " --size 640x480 --focal 700");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_DOUBLE_EQ(json::parse(r.out)["K"]["fx"].get<double>(), 700.0);
+  EXPECT_EQ(propcam("infer " + fixture_photo() + " -o " + out + " --fixed-focal").exit_code, 2);
+  EXPECT_NE(propcam("infer " + fixture_photo() + " -o " + out + " --focal -3").exit_code, 0);
+}
+
 TEST(Cli, BenchReportsStagesAndPlots) {
   const std::string plots = temp("plots");
   const CliRun r = propcam("bench --json --size 96x72 --max-spp 2 --reference-spp 8 --plot " + plots);
