@@ -38,6 +38,7 @@ struct Config {
   std::string label;   // the knob's value
   double value = 0;    // numeric value for plots
   std::function<void(inference::InferenceOptions&)> apply;
+  bool calibrated = false;  // the lens's true focal length given as a calibrated board would
 };
 
 struct Errors {
@@ -136,6 +137,11 @@ std::vector<Config> make_configs(const std::vector<std::string>& wanted) {
     for (int it : {50, 100, 300, 600})
       c.push_back({"camera", std::to_string(it) + " line pairs", static_cast<double>(it),
                    [it](inference::InferenceOptions& o) { o.camera.ransac_iterations = it; }});
+  if (want("camera")) {
+    Config calibrated{"camera", "calibrated focal", 0, [](inference::InferenceOptions&) {}};
+    calibrated.calibrated = true;
+    c.push_back(calibrated);
+  }
   if (want("resolution")) {
     c.push_back({"resolution", "box only", 0, [](inference::InferenceOptions& o) { o.geometry.solve = false; }});
     for (int w : {40, 60, 80, 120, 160})
@@ -235,7 +241,12 @@ json run_geometry_bench(const GeometryBenchOptions& o) {
     std::vector<Errors> all, rooms, streets;
     json scenes = json::array();
     for (const Shot& s : shots) {
-      const Errors e = measure(s, options);
+      inference::InferenceOptions scene_options = options;
+      if (c.calibrated) {
+        scene_options.camera.prior_focal_px = s.truth.fx;
+        scene_options.camera.fixed_focal = true;
+      }
+      const Errors e = measure(s, scene_options);
       all.push_back(e);
       (s.truth.indoor ? rooms : streets).push_back(e);
       scenes.push_back({{"scene", s.name}, {"abs_rel", e.abs_rel}, {"normal_deg", e.normal_deg}, {"focal_rel", e.focal_rel},
