@@ -2,6 +2,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <limits>
 
 #include "propcam/inference/depth_transfer.h"
 
@@ -84,6 +85,59 @@ TEST(DepthTransferHardCases, LoadRejectsMissingTruncatedAndForeignFiles) {
   std::ofstream(dir + "/version.bin", std::ios::binary) << wrong_version;
   EXPECT_THROW(DepthDatabase::load(dir + "/version.bin"), std::runtime_error);
   EXPECT_NO_THROW(DepthDatabase::load(dir + "/good.bin"));
+}
+
+// Bytes that are the right length but wrong inside: each is refused with a
+// runtime_error that names the file, never read as a database.
+TEST(DepthTransferHardCases, LoadRejectsCorruptContents) {
+  const std::string dir = ::testing::TempDir() + "/depth_db_corrupt";
+  std::filesystem::create_directories(dir);
+  one_example_db(true).save(dir + "/good.bin");
+  std::ifstream in(dir + "/good.bin", std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), {});
+  // Layout: magic[8], version, count, descriptor length, width, height (uint32 each), then records
+  // starting with the focal length (double).
+  const auto patched = [&](size_t offset, const std::string& with) {
+    std::string b = bytes;
+    b.replace(offset, with.size(), with);
+    return b;
+  };
+  const auto u32 = [](uint32_t v) { return std::string(reinterpret_cast<const char*>(&v), sizeof v); };
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const std::string nan_bytes(reinterpret_cast<const char*>(&nan), sizeof nan);
+  const float nanf = std::numeric_limits<float>::quiet_NaN();
+  const std::string nanf_bytes(reinterpret_cast<const char*>(&nanf), sizeof nanf);
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"magic", patched(0, "PCDEPTX")},
+      {"huge count", patched(12, u32(0xFFFFFFFFu))},
+      {"descriptor length", patched(16, u32(7))},
+      {"huge width", patched(20, u32(1u << 30))},
+      {"zero height", patched(24, u32(0))},
+      {"count too small (trailing bytes)", patched(12, u32(0))},
+      {"NaN focal length", patched(28, nan_bytes)},
+      {"NaN descriptor", patched(28 + 4 * sizeof(double) + 1, nanf_bytes)},
+  };
+  for (const auto& [what, b] : cases) {
+    const std::string path = dir + "/corrupt.bin";
+    std::ofstream(path, std::ios::binary | std::ios::trunc) << b;
+    try {
+      DepthDatabase::load(path);
+      ADD_FAILURE() << what << ": loaded";
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << what << ": " << e.what();
+    }
+  }
+}
+
+TEST(DepthTransferHardCases, SaveIsAtomicAndLeavesNoTemporaryFile) {
+  const std::string dir = ::testing::TempDir() + "/depth_db_atomic";
+  std::filesystem::remove_all(dir);
+  one_example_db(true).save(dir + "/sub/db.bin");  // creates the folder
+  one_example_db(false).save(dir + "/sub/db.bin");  // replaces the file
+  EXPECT_FALSE(std::filesystem::exists(dir + "/sub/db.bin.tmp"));
+  const DepthDatabase back = DepthDatabase::load(dir + "/sub/db.bin");
+  ASSERT_EQ(back.size(), 1u);
+  EXPECT_FALSE(back.at(0).indoor);
 }
 
 }  // namespace
