@@ -10,6 +10,7 @@
 #include <random>
 
 #include "propcam/capture/image_file.h"
+#include "propcam/inference/depth_transfer.h"
 #include "propcam/render/camera.h"
 
 namespace {
@@ -216,6 +217,26 @@ TEST(Cli, BenchGeometryReportsErrorsAgainstSecondsAndPlots) {
     }
   EXPECT_GT(fs::file_size(plots + "/geometry_rooms.png"), 1000u);
   EXPECT_EQ(propcam("bench geometry --sweeps nonsense").exit_code, 2);
+}
+
+TEST(Cli, BuildDepthDbThenBenchTransferOnIt) {
+  const std::string db = temp("depth_db") + "/rooms.bin";
+  const CliRun built = propcam("build-depth-db -o " + db + " --rooms 3 --streets 0 --spp 2");
+  ASSERT_EQ(built.exit_code, 0) << built.out;
+  ASSERT_EQ(propcam::inference::DepthDatabase::load(db).size(), 3u);
+  const CliRun r = propcam("bench transfer --db " + db + " --rooms 1 --size 96x72 --spp 2 --k 1,3 --json");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const json b = json_tail(r.out);
+  EXPECT_EQ(b["database_size"].get<int>(), 3);
+  ASSERT_EQ(b["rows"].size(), 4u);  // k 1 and 3, with and without the warp
+  for (const auto& row : b["rows"])
+    for (const char* k : {"abs_rel_median", "rmse_log_median", "seconds_median"}) {
+      ASSERT_TRUE(row[k].is_number()) << k;
+      EXPECT_TRUE(std::isfinite(row[k].get<double>())) << k;
+      EXPECT_GE(row[k].get<double>(), 0.0) << k;
+    }
+  EXPECT_EQ(propcam("bench transfer --db " + db + " --k 0").exit_code, 2);
+  EXPECT_NE(propcam("bench transfer --db " + db + ".missing --rooms 1").exit_code, 0);
 }
 
 TEST(Cli, BenchRenderReportsSpeedAndErrorPerSize) {
