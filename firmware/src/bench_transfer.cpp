@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 
@@ -67,6 +68,7 @@ json run_transfer_bench(const TransferBenchOptions& o) {
   render::RenderSettings settings;
   settings.samples_per_pixel = o.spp;
   json scenes = json::array();
+  std::vector<double> oracle;
   for (int seed = 1; seed <= o.rooms; ++seed) {
     progress.stage("room " + std::to_string(seed) + " of " + std::to_string(o.rooms));
     render::SyntheticRoomSpec spec;
@@ -97,6 +99,24 @@ json run_transfer_bench(const TransferBenchOptions& o) {
                                                                                    {"rmse_log", rmse_log},
                                                                                    {"nearest", d.indices.front()}};
     }
+    if (o.oracle) {
+      // The best single example the database holds for this room (warped): what a
+      // perfect descriptor would pick, i.e. how much of the error is the database's.
+      double best = std::numeric_limits<double>::infinity();
+      size_t best_index = 0;
+      for (size_t i = 0; i < db.size(); ++i) {
+        if (!db.at(i).indoor) continue;
+        inference::DepthDatabase one;
+        one.add(db.at(i));
+        const inference::TransferredDepth d = inference::transfer_depth(
+            shot.photo_linear, shot.room.camera, shot.truth.camera_height_m, true, one, shot.truth.depth.size(), {1, true, true});
+        double abs_rel = 0, rmse_log = 0;
+        depth_errors(d.median, shot.truth.depth, abs_rel, rmse_log);
+        if (abs_rel < best) best = abs_rel, best_index = i;
+      }
+      oracle.push_back(best);
+      row["oracle"] = {{"abs_rel", best}, {"example", best_index}};
+    }
     scenes.push_back(row);
   }
   json rows = json::array();
@@ -116,6 +136,8 @@ json run_transfer_bench(const TransferBenchOptions& o) {
           {"size", std::to_string(o.width) + "x" + std::to_string(o.height)},
           {"spp", o.spp},
           {"rows", rows},
+          {"oracle_abs_rel_median", median(oracle)},
+          {"oracle_abs_rel_mean", mean(oracle)},
           {"scenes", scenes}};
 }
 
@@ -134,6 +156,9 @@ std::string format_transfer_bench(const json& r) {
                   row["rmse_log_median"].get<double>(), 1e3 * row["seconds_median"].get<double>());
     out << line;
   }
+  if (r["oracle_abs_rel_median"].get<double>() > 0)
+    out << "oracle (the best single example, warped): abs-rel median " << r["oracle_abs_rel_median"].get<double>()
+        << ", mean " << r["oracle_abs_rel_mean"].get<double>() << "\n";
   return out.str();
 }
 
@@ -144,6 +169,8 @@ CLI::App* add_bench_transfer_command(CLI::App& bench, TransferBenchArgs& a) {
   cmd->add_option("--spp", a.options.spp, "Samples per pixel of the photos")->check(CLI::PositiveNumber);
   cmd->add_option("--k", a.ks, "Comma-separated candidate counts");
   cmd->add_option("--db", a.options.database, "Database file (default: PROPCAM_DEPTH_DB or the committed one)");
+  cmd->add_flag("--oracle,!--no-oracle", a.options.oracle,
+                "Also find the best single example per room (every indoor example warped and scored)");
   cmd->add_flag("--json", a.json_out, "Machine-readable output");
   return cmd;
 }

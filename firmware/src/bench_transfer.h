@@ -17,6 +17,7 @@ struct TransferBenchOptions {
   int spp = 16;
   std::vector<int> ks = {1, 3, 7, 15};
   std::string database;              // empty: inference::default_depth_database_path()
+  bool oracle = true;                // also the best single example per room (an upper bound for retrieval)
   bool quiet = false;
 };
 
