@@ -4,6 +4,8 @@
 #include <cmath>
 #include <numbers>
 #include <random>
+#include <utility>
+#include <vector>
 
 #include "propcam/render/mesh_shapes.h"
 
@@ -142,11 +144,13 @@ SyntheticStreet make_synthetic_street(const SyntheticStreetSpec& spec) {
     }
   }
   // Parked cars along the kerbs.
+  std::vector<std::pair<V, V>> cars;  // footprints, kept clear of the free ground point
   for (int i = 0; i < 6; ++i) {
     const float side = unit(rng) < 0.5f ? -1.f : 1.f;
     const float z = between(-70.f, -16.f);  // clear of the free ground point
     const float x = side * (road_half - 1.2f);
     add_box(m, V(x - 0.9f, 0, z - 2.1f), V(x + 0.9f, 1.5f, z + 2.1f), mat.car);
+    cars.emplace_back(V(x - 0.9f, 0, z - 2.1f), V(x + 0.9f, 1.5f, z + 2.1f));
   }
   m.compute_vertex_normals();
   m.normals.clear();  // flat shading
@@ -180,9 +184,50 @@ SyntheticStreet make_synthetic_street(const SyntheticStreetSpec& spec) {
   // on the road or sidewalk, clear of cars.
   const Eigen::Vector3d low_ray = cam.ray_direction(cam.cx, 0.9 * (cam.height - 1));
   const double reach = low_ray.y() < -1e-3 ? std::min(spec.camera_height_m / -low_ray.y(), 40.0) : 4.0;
-  Eigen::Vector3d ahead = cam.center_world + Eigen::Vector3d(low_ray.x(), 0, low_ray.z()).normalized() *
-                                                 (reach * std::hypot(low_ray.x(), low_ray.z()));
-  ahead.x() = std::clamp(ahead.x(), -(road_half + walk - 0.5), road_half + walk - 0.5);
+  // It must be seen: in the frame, off the kerbs and parked cars, and not
+  // hidden behind them (a 0.12 m kerb hides a strip of ground beyond it).
+  // Farther along the ray (higher in the frame) or nearer if need be.
+  std::vector<std::pair<V, V>> obstacles = cars;
+  for (float side : {-1.f, 1.f})
+    obstacles.emplace_back(V(std::min(side * road_half, side * (road_half + 0.3f)), 0, kStreetEndZ),
+                           V(std::max(side * road_half, side * (road_half + 0.3f)), 0.12f, kStreetStartZ));
+  auto seen = [&](const Eigen::Vector3d& p) {
+    Eigen::Vector2d px;
+    if (!cam.project(p, px) || px.x() < 0.02 * cam.width || px.x() > 0.98 * cam.width || px.y() < 0.02 * cam.height ||
+        px.y() > 0.98 * cam.height)
+      return false;
+    for (const auto& [lo, hi] : obstacles) {
+      // The segment camera -> p against the box grown by half a metre (slab test).
+      const Eigen::Vector3d blo = lo.cast<double>() - Eigen::Vector3d(0.5, 0.5, 0.5), bhi = hi.cast<double>() + Eigen::Vector3d(0.5, 0.05, 0.5);
+      const Eigen::Vector3d o = cam.center_world, d = p - o;
+      double t0 = 0, t1 = 1;
+      for (int k = 0; k < 3 && t0 <= t1; ++k) {
+        if (std::abs(d[k]) < 1e-12) {
+          if (o[k] < blo[k] || o[k] > bhi[k]) t1 = -1;
+          continue;
+        }
+        double ta = (blo[k] - o[k]) / d[k], tb = (bhi[k] - o[k]) / d[k];
+        if (ta > tb) std::swap(ta, tb);
+        t0 = std::max(t0, ta);
+        t1 = std::min(t1, tb);
+      }
+      if (t0 <= t1) return false;
+    }
+    return true;
+  };
+  const Eigen::Vector3d flat = Eigen::Vector3d(low_ray.x(), 0, low_ray.z()).normalized() * std::hypot(low_ray.x(), low_ray.z());
+  auto candidate = [&](double t) {
+    Eigen::Vector3d p = cam.center_world + flat * (reach * t);
+    p.x() = std::clamp(p.x(), -(road_half + walk - 0.5), road_half + walk - 0.5);
+    p.y() = 0.0;
+    return p;
+  };
+  Eigen::Vector3d ahead = candidate(1.0);
+  for (double t : {1.0, 1.15, 1.3, 1.5, 1.75, 2.0, 0.9, 0.8, 2.5, 3.0, 0.7, 4.0})
+    if (seen(candidate(t))) {
+      ahead = candidate(t);
+      break;
+    }
   out.free_ground_point = V(static_cast<float>(ahead.x()), 0.f, static_cast<float>(ahead.z()));
   return out;
 }
