@@ -118,6 +118,9 @@ json summary(const std::vector<double>& v) {
 struct Evaluation {
   json images = json::array();
   std::vector<double> focal_err, focal_err_from_vps, axis_err, axis_err_own_k, seconds;
+  // Distance (px) of the principal point from the truth: every image, the
+  // images where it was estimated, and the image centre on those images.
+  std::vector<double> principal_err, principal_err_estimated, centre_err_estimated;
   std::map<std::string, int> cases;
 };
 
@@ -139,8 +142,17 @@ Evaluation evaluate(const std::vector<Image>& images, const inference::CameraOpt
     ev.focal_err.push_back(focal_err);
     if (est.focal_from_vanishing_points) ev.focal_err_from_vps.push_back(focal_err);
     ev.cases[est.report.why] += 1;
+    const double principal_err = std::hypot(est.cx - t.cx, est.cy - t.cy);
+    ev.principal_err.push_back(principal_err);
+    const bool principal_estimated = est.report.details.value("principal_point_estimated", false);
+    if (principal_estimated) {
+      ev.principal_err_estimated.push_back(principal_err);
+      ev.centre_err_estimated.push_back(std::hypot((o.width - 1) / 2.0 - t.cx, (o.height - 1) / 2.0 - t.cy));
+    }
     json entry = {{"id", im.id}, {"lines", im.lines.size()}, {"fx", est.fx}, {"focal_err", focal_err},
-                  {"focal_from_vps", est.focal_from_vanishing_points}, {"case", est.report.why}, {"seconds", seconds}};
+                  {"focal_from_vps", est.focal_from_vanishing_points}, {"case", est.report.why}, {"seconds", seconds},
+                  {"principal_point", {est.cx, est.cy}}, {"principal_point_estimated", principal_estimated},
+                  {"principal_err_px", principal_err}};
     json vps = json::array();  // homogeneous pixels (x, y, w): the point is (x/w, y/w), at infinity when w = 0
     for (const Vector3d& d : est.directions_cam)
       vps.push_back({est.fx * d.x() + est.cx * d.z(), est.fy * d.y() + est.cy * d.z(), d.z()});
@@ -223,6 +235,7 @@ json run_camera_bench(const CameraBenchOptions& o) {
   inference::CameraOptions defaults;
   defaults.prior_focal_px = o.prior_focal_px;
   defaults.fixed_focal = o.fixed_focal;
+  defaults.estimate_principal_point = !o.centre_principal_point;
   result["dataset"] = {{"dir", o.nyu_dir}, {"images", images.size()}, {"skipped_without_vps", missing_vps},
                        {"size", {o.width, o.height}},
                        {"true_intrinsics", {{"fx", t.fx}, {"fy", t.fy}, {"cx", t.cx}, {"cy", t.cy}}}};
@@ -232,6 +245,7 @@ json run_camera_bench(const CameraBenchOptions& o) {
                        {"inlier_distance_px", defaults.inlier_distance_px},
                        {"prior_focal_px", defaults.prior_focal_px},
                        {"fixed_focal", defaults.fixed_focal},
+                       {"estimate_principal_point", defaults.estimate_principal_point},
                        {"seed", defaults.seed}};
   const Evaluation ev = evaluate(images, defaults, o, 1, &progress);
   result["focal_rel_error"] = focal_json(ev.focal_err);
@@ -248,6 +262,9 @@ json run_camera_bench(const CameraBenchOptions& o) {
   result["axis_error_own_k_deg"] = summary(ev.axis_err_own_k);
   result["axis_error_own_k_deg"]["metric"] = "as axis_error_deg, the estimated axes compared in their own (estimated) camera frame";
   result["cases"] = ev.cases;
+  result["principal_point_error_px"] = summary(ev.principal_err);
+  result["principal_point_error_px"]["estimated"] = summary(ev.principal_err_estimated);
+  result["principal_point_error_px"]["centre_on_estimated"] = summary(ev.centre_err_estimated);
   result["seconds_per_image"] = {{"mean", mean(ev.seconds)}, {"median", percentile(ev.seconds, 0.5)},
                                  {"max", *std::max_element(ev.seconds.begin(), ev.seconds.end())}};
   result["images"] = ev.images;
@@ -306,6 +323,13 @@ std::string format_camera_bench(const json& r) {
   out << line;
   std::snprintf(line, sizeof line, "  axis error (deg, %d images): median %.2f  p90 %.2f  mean %.2f   own-K frame: median %.2f  p90 %.2f\n",
                 a["count"].get<int>(), num(a["median"]), num(a["p90"]), num(a["mean"]), num(ao["median"]), num(ao["p90"]));
+  out << line;
+  const json& pp = r["principal_point_error_px"];
+  std::snprintf(line, sizeof line,
+                "  principal point error (px): all median %.1f  p90 %.1f;  estimated on %d images: median %.1f  p90 %.1f "
+                "(image centre there: median %.1f)\n",
+                num(pp["median"]), num(pp["p90"]), pp["estimated"]["count"].get<int>(), num(pp["estimated"]["median"]),
+                num(pp["estimated"]["p90"]), num(pp["centre_on_estimated"]["median"]));
   out << line << "  cases:";
   for (const auto& [k, v] : r["cases"].items()) out << " " << k << " " << v;
   std::snprintf(line, sizeof line, "\n  seconds per image: mean %.4f  median %.4f  max %.4f\n",
@@ -387,6 +411,8 @@ CLI::App* add_bench_camera_command(CLI::App& bench, CameraBenchArgs& a) {
   cmd->add_option("--prior-focal", a.options.prior_focal_px, "Focal prior in pixels given to the stage (0: its default)")
       ->check(CLI::NonNegativeNumber);
   cmd->add_flag("--fixed-focal", a.options.fixed_focal, "Use the focal prior as the focal length (rotation only)");
+  cmd->add_flag("--centre-principal-point", a.options.centre_principal_point,
+                "Keep the principal point at the image centre (do not estimate it)");
   cmd->add_option("--max-images", a.options.max_images, "Use only the first N images (0: all)");
   cmd->add_option("--sweep-images", a.options.sweep_images, "Images per sweep point, evenly spaced (0: no sweep)");
   cmd->add_option("--plot", a.options.plot_dir, "Write PNG plots (gnuplot) to this folder");

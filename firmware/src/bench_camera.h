@@ -24,6 +24,7 @@ struct CameraBenchOptions {
   int max_images = 0;      // 0: every image in the folder
   double prior_focal_px = 0;  // CameraOptions::prior_focal_px (0: the stage's default prior)
   bool fixed_focal = false;   // CameraOptions::fixed_focal (a calibrated lens: rotation only)
+  bool centre_principal_point = false;  // CameraOptions::estimate_principal_point off
   int sweep_images = 300;  // images (evenly spaced) per sweep point; 0: no sweep
   std::string plot_dir;    // empty: no plots
   bool quiet = false;

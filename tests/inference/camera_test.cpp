@@ -21,6 +21,11 @@ using testing::manhattan_lines;
 using testing::rolled;
 
 constexpr double kRadToDeg = 180.0 / std::numbers::pi;
+// Rotation tolerance with ~25 noisy lines per axis. The stage frees the
+// principal point (2% prior) when the lines fix the focal length; against a
+// camera whose point is exactly central that costs up to ~0.3 degrees here
+// (0.5 before), and it lowers the median axis error on real photos (NYU-VP).
+constexpr double kAxisToleranceDeg = 0.75;
 
 // Worst angle between a true world axis and the nearest estimated one (as
 // lines: sign-free), both in camera coordinates.
@@ -58,8 +63,42 @@ TEST(Camera, RecoversFocalAndUpFromThreeVanishingPoints) {
     expect_finite(est);
     EXPECT_EQ(est.which, CameraCase::ThreeVanishingPoints) << est.report.why;
     EXPECT_NEAR(est.fx / f, 1.0, 0.03) << "f=" << f;
-    EXPECT_LT(up_error_deg(est.R_world_from_cam, cam.R_world_from_cam), 0.5) << "f=" << f;
+    EXPECT_LT(up_error_deg(est.R_world_from_cam, cam.R_world_from_cam), kAxisToleranceDeg) << "f=" << f;
   }
+}
+
+TEST(Camera, EstimatesAnOffCentrePrincipalPointFromThreeFiniteVanishingPoints) {
+  // A lens 20 px right of and 15 px above the image centre, looking down and
+  // sideways so that all three vanishing points are finite.
+  for (const auto& [f, yaw, pitch, seed] : {std::tuple{500.0, 35.0, -25.0, 5}, {450.0, -30.0, -30.0, 6}}) {
+    auto cam = make_camera(f, yaw, pitch);
+    cam.cx += 20;
+    cam.cy -= 15;
+    const auto lines = manhattan_lines(cam, 60, 0.5, seed);
+    const CameraEstimate est = estimate_camera(lines, 640, 480);
+    expect_finite(est);
+    ASSERT_TRUE(est.report.details.value("principal_point_estimated", false)) << est.report.details.dump();
+    const double centre_error = std::hypot(319.5 - cam.cx, 239.5 - cam.cy);
+    const double error = std::hypot(est.cx - cam.cx, est.cy - cam.cy);
+    EXPECT_LT(error, 0.4 * centre_error) << "estimated (" << est.cx << ", " << est.cy << ")";
+    EXPECT_NEAR(est.fx / f, 1.0, 0.03);
+    EXPECT_LT(axes_error_deg(est, cam), kAxisToleranceDeg);
+  }
+}
+
+TEST(Camera, PrincipalPointStaysAtTheCentreWhenTheLinesCannotFixIt) {
+  // Frontal view: the focal length is the prior, so the principal point is
+  // not estimated either; with the option off it is never estimated.
+  const auto frontal = make_camera(500, 0, 0);
+  const CameraEstimate a = estimate_camera(manhattan_lines(frontal, 30, 0.5, 3), 640, 480);
+  EXPECT_FALSE(a.report.details.value("principal_point_estimated", true));
+  EXPECT_DOUBLE_EQ(a.cx, 319.5);
+  EXPECT_DOUBLE_EQ(a.cy, 239.5);
+  CameraOptions centre_only;
+  centre_only.estimate_principal_point = false;
+  const CameraEstimate b = estimate_camera(manhattan_lines(make_camera(500, 35, -25), 60, 0.5, 5), 640, 480, centre_only);
+  EXPECT_DOUBLE_EQ(b.cx, 319.5);
+  EXPECT_DOUBLE_EQ(b.cy, 239.5);
 }
 
 TEST(Camera, SurvivesThirtyPercentOutlierLines) {
@@ -101,8 +140,8 @@ TEST(Camera, WideAngleNinetyDegreeViews) {
     EXPECT_EQ(est.which, CameraCase::ThreeVanishingPoints) << est.report.why;
     EXPECT_TRUE(est.focal_from_vanishing_points) << "yaw " << yaw;
     EXPECT_NEAR(est.fx / 320.0, 1.0, 0.03) << "yaw " << yaw;
-    EXPECT_LT(up_error_deg(est.R_world_from_cam, cam.R_world_from_cam), 0.5) << "yaw " << yaw;
-    EXPECT_LT(axes_error_deg(est, cam), 0.5) << "yaw " << yaw;
+    EXPECT_LT(up_error_deg(est.R_world_from_cam, cam.R_world_from_cam), kAxisToleranceDeg) << "yaw " << yaw;
+    EXPECT_LT(axes_error_deg(est, cam), kAxisToleranceDeg) << "yaw " << yaw;
   }
 }
 
@@ -121,7 +160,7 @@ TEST(Camera, StronglyTiltedAndRolledCameras) {
     expect_finite(est);
     EXPECT_EQ(est.which, CameraCase::ThreeVanishingPoints) << est.report.why << ", pitch " << pitch;
     EXPECT_NEAR(est.fx / f, 1.0, 0.05) << "pitch " << pitch << ", roll " << roll;
-    EXPECT_LT(up_error_deg(est.R_world_from_cam, cam.R_world_from_cam), 0.5) << "pitch " << pitch << ", roll " << roll;
+    EXPECT_LT(up_error_deg(est.R_world_from_cam, cam.R_world_from_cam), kAxisToleranceDeg) << "pitch " << pitch << ", roll " << roll;
   }
 }
 
@@ -155,7 +194,7 @@ TEST(Camera, CalibratedLensGivesTheRotationOnly) {
   expect_finite(est);
   EXPECT_DOUBLE_EQ(est.fx, 610);
   EXPECT_FALSE(est.focal_from_vanishing_points);
-  EXPECT_LT(axes_error_deg(est, cam), 0.5);
+  EXPECT_LT(axes_error_deg(est, cam), kAxisToleranceDeg);
 }
 
 TEST(Camera, ReportsPerLineLabelsAndIsDeterministic) {

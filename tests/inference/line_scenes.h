@@ -4,6 +4,7 @@
 
 #include <Eigen/Dense>
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <random>
@@ -16,19 +17,11 @@ namespace propcam::inference::testing {
 
 inline constexpr double kLineSceneRadToDeg = 180.0 / std::numbers::pi;
 
+// A 640x480 camera 1.5 m above the floor, turned by yaw and pitch (degrees).
 inline render::PinholeCamera make_camera(double f, double yaw_deg, double pitch_deg) {
-  render::PinholeCamera cam;
-  cam.width = 640;
-  cam.height = 480;
+  render::PinholeCamera cam = render::pinhole_with_fov(640, 480, 90.0);
   cam.fx = cam.fy = f;
-  cam.cx = 319.5;
-  cam.cy = 239.5;
-  const double yaw = yaw_deg / kLineSceneRadToDeg, pitch = pitch_deg / kLineSceneRadToDeg;
-  const Eigen::Vector3d forward(-std::sin(yaw) * std::cos(pitch), std::sin(pitch), -std::cos(yaw) * std::cos(pitch));
-  const Eigen::Vector3d right = forward.cross(Eigen::Vector3d::UnitY()).normalized();
-  cam.R_world_from_cam.col(0) = right;
-  cam.R_world_from_cam.col(1) = forward.cross(right);
-  cam.R_world_from_cam.col(2) = forward;
+  cam.R_world_from_cam = render::rotation_from_yaw_pitch_roll(yaw_deg / kLineSceneRadToDeg, pitch_deg / kLineSceneRadToDeg, 0.0);
   cam.center_world = {0, 1.5, 0};
   return cam;
 }
@@ -76,10 +69,9 @@ inline std::vector<LineSegment> axis_lines(const render::PinholeCamera& cam, int
 
 // The camera turned about its optical axis by `roll_deg` (image rotated clockwise).
 inline render::PinholeCamera rolled(render::PinholeCamera cam, double roll_deg) {
-  const double r = roll_deg / kLineSceneRadToDeg;
-  const Eigen::Vector3d right = cam.R_world_from_cam.col(0), down = cam.R_world_from_cam.col(1);
-  cam.R_world_from_cam.col(0) = std::cos(r) * right + std::sin(r) * down;
-  cam.R_world_from_cam.col(1) = -std::sin(r) * right + std::cos(r) * down;
+  const Eigen::Vector3d forward = cam.R_world_from_cam.col(2);
+  const double yaw = std::atan2(-forward.x(), -forward.z()), pitch = std::asin(std::clamp(forward.y(), -1.0, 1.0));
+  cam.R_world_from_cam = render::rotation_from_yaw_pitch_roll(yaw, pitch, roll_deg / kLineSceneRadToDeg);
   return cam;
 }
 

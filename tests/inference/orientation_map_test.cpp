@@ -28,18 +28,9 @@ namespace {
 constexpr double kDegToRad = std::numbers::pi / 180.0;
 
 render::PinholeCamera make_camera(int w, int h, double f, double yaw_deg, double pitch_deg, Eigen::Vector3d centre) {
-  render::PinholeCamera cam;
-  cam.width = w;
-  cam.height = h;
+  render::PinholeCamera cam = render::pinhole_with_fov(w, h, 90.0);
   cam.fx = cam.fy = f;
-  cam.cx = 0.5 * w - 0.5;
-  cam.cy = 0.5 * h - 0.5;
-  const double yaw = yaw_deg * kDegToRad, pitch = pitch_deg * kDegToRad;
-  const Eigen::Vector3d forward(-std::sin(yaw) * std::cos(pitch), std::sin(pitch), -std::cos(yaw) * std::cos(pitch));
-  const Eigen::Vector3d right = forward.cross(Eigen::Vector3d::UnitY()).normalized();
-  cam.R_world_from_cam.col(0) = right;
-  cam.R_world_from_cam.col(1) = forward.cross(right);
-  cam.R_world_from_cam.col(2) = forward;
+  cam.R_world_from_cam = render::rotation_from_yaw_pitch_roll(yaw_deg * kDegToRad, pitch_deg * kDegToRad, 0.0);
   cam.center_world = centre;
   return cam;
 }

@@ -56,6 +56,10 @@ struct CameraOptions {
   int min_support_lines = 4;      // inlier lines a vanishing direction needs to count
   int max_refine_iterations = 50; // per Ceres solve (label, solve, relabel: at most three solves)
   double max_refine_seconds = 0.5; // per Ceres solve
+  // Estimate the principal point from three finite vanishing points (with a
+  // prior at the image centre; kept at the centre unless the lines fix it
+  // well). Off: always the image centre.
+  bool estimate_principal_point = true;
   uint64_t seed = 7;
 };
 
@@ -79,9 +83,10 @@ struct CameraEstimate {
   StageReport report;
 };
 
-// The principal point is the image centre. Vanishing points are found in the
-// image (homogeneous: points at infinity are ordinary) and the frame refined
-// on endpoint distances; the method and its NYU-VP evaluation are in
+// The principal point is the image centre unless three finite vanishing
+// points fix it (see CameraOptions::estimate_principal_point). Vanishing
+// points are found in the image (homogeneous: points at infinity are
+// ordinary) and the frame refined on endpoint distances; the method and its NYU-VP evaluation are in
 // inference/README.md. Deterministic for a seed, bounded in time, always
 // finite; throws std::invalid_argument for a non-positive size.
 CameraEstimate estimate_camera(const std::vector<LineSegment>& lines, int width, int height,
