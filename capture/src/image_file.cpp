@@ -76,6 +76,64 @@ cv::Mat linear_to_srgb8(const cv::Mat& linear) {
   return out;
 }
 
+namespace {
+
+// Diagonal of the 35 mm frame (36 x 24 mm) that equivalent focal lengths refer to.
+constexpr double kFullFrameDiagonalMm = 43.2666;
+// A focal length outside 0.1..10 image diagonals (a 157 to 6 degree diagonal
+// field of view) is a bad tag, not a lens.
+constexpr double kMinFocalOfDiagonal = 0.1, kMaxFocalOfDiagonal = 10.0;
+// Exif FocalPlaneResolutionUnit: 2 inch, 3 cm, 4 mm, 5 um (in mm).
+double resolution_unit_mm(int unit) {
+  switch (unit) {
+    case 2: return 25.4;
+    case 3: return 10.0;
+    case 4: return 1.0;
+    case 5: return 1e-3;
+    default: return 0.0;
+  }
+}
+
+double number_attribute(const OIIO::ImageSpec& spec, const char* name) {
+  const OIIO::ParamValue* p = spec.find_attribute(name);
+  if (!p) return 0.0;
+  const double v = p->get_float();
+  return std::isfinite(v) ? v : 0.0;
+}
+
+}  // namespace
+
+ExifLens read_exif_focal(const std::string& path) {
+  auto input = OIIO::ImageInput::open(path);
+  if (!input) throw std::runtime_error("cannot open image '" + path + "': " + OIIO::geterror());
+  const OIIO::ImageSpec spec = input->spec();
+  input->close();
+  const double diagonal_px = std::hypot(spec.width, spec.height);
+  const auto plausible = [&](double f) {
+    return f >= kMinFocalOfDiagonal * diagonal_px && f <= kMaxFocalOfDiagonal * diagonal_px;
+  };
+  ExifLens lens;
+  const double f35 = number_attribute(spec, "Exif:FocalLengthIn35mmFilm");
+  if (f35 > 0 && plausible(f35 * diagonal_px / kFullFrameDiagonalMm)) {
+    lens.focal_px = f35 * diagonal_px / kFullFrameDiagonalMm;
+    lens.source = "Exif:FocalLengthIn35mmFilm";
+    return lens;
+  }
+  const double f_mm = number_attribute(spec, "Exif:FocalLength");
+  const double x_res = number_attribute(spec, "Exif:FocalPlaneXResolution");
+  const double unit_mm = resolution_unit_mm(static_cast<int>(number_attribute(spec, "Exif:FocalPlaneResolutionUnit")));
+  if (f_mm > 0 && x_res > 0 && unit_mm > 0) {
+    double f_px = f_mm * x_res / unit_mm;  // pixels of the sensor's full readout
+    const double original_width = number_attribute(spec, "Exif:PixelXDimension");
+    if (original_width > 0) f_px *= spec.width / original_width;
+    if (plausible(f_px)) {
+      lens.focal_px = f_px;
+      lens.source = "Exif:FocalLength and Exif:FocalPlaneXResolution";
+    }
+  }
+  return lens;
+}
+
 cv::Mat read_image_float(const std::string& path) {
   auto input = OIIO::ImageInput::open(path);
   if (!input) throw std::runtime_error("cannot open image '" + path + "': " + OIIO::geterror());

@@ -68,13 +68,23 @@ void print_reports(const inference::SceneModel& scene) {
 
 // A calibrated lens (the board's calibration): its focal length in pixels at
 // the photo's resolution, a prior for the camera stage or, fixed, the focal length.
+// The lens: a calibrated focal length given on the command line wins;
+// otherwise the photo's EXIF focal length (if any) is the camera stage's
+// prior (not fixed: the lines may still overrule it).
 struct LensPrior {
   double focal_px = 0;  // 0: none
   bool fixed = false;
-  void apply(inference::CameraOptions& o) const {
+  void apply(inference::CameraOptions& o, const std::string& photo_path = {}) const {
     if (fixed && !(focal_px > 0)) throw std::invalid_argument("--fixed-focal needs --focal PX");
     o.prior_focal_px = focal_px;
     o.fixed_focal = fixed;
+    o.prior_source = focal_px > 0 ? "calibration (--focal)" : "";
+    if (focal_px > 0 || photo_path.empty()) return;
+    const capture::ExifLens exif = capture::read_exif_focal(photo_path);
+    if (exif.focal_px > 0) {
+      o.prior_focal_px = exif.focal_px;
+      o.prior_source = exif.source;
+    }
   }
 };
 
@@ -82,7 +92,7 @@ inference::SceneModel infer_with_progress(const cv::Mat& photo, const std::strin
                                           const LensPrior& lens, Progress& progress) {
   inference::InferenceOptions options;
   options.camera_height_m = camera_height;
-  lens.apply(options.camera);
+  lens.apply(options.camera, source);
   options.on_stage = [&](const std::string& s) { progress.stage("infer: " + s); };
   inference::SceneModel scene = inference::infer_scene(photo, options);
   scene.source_photo = source;

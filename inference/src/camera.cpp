@@ -804,6 +804,9 @@ CameraEstimate estimate_camera(const std::vector<LineSegment>& input, int width,
                {"inlier_distance_px", tol_px},
                {"focal_px", est.fx},
                {"focal_prior_px", prior_f},
+               {"focal_prior_source", options.prior_focal_px > 0 && std::isfinite(options.prior_focal_px)
+                                          ? (options.prior_source.empty() ? std::string("given") : options.prior_source)
+                                          : std::string("default 60-degree lens")},
                {"focal_from_vanishing_points", est.focal_from_vanishing_points},
                {"focal_log_std", std::isfinite(log_f_std) ? nlohmann::json(log_f_std) : nlohmann::json(nullptr)},
                {"principal_point", {est.cx, est.cy}},

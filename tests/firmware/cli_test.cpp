@@ -1,6 +1,8 @@
 // Runs the real `propcam` executable as a user would.
 #include <gtest/gtest.h>
 
+#include <OpenImageIO/imageio.h>
+
 #include <array>
 #include <cmath>
 #include <cstdio>
@@ -188,6 +190,40 @@ TEST(Cli, InferTakesACalibratedFocalLength) {
   EXPECT_DOUBLE_EQ(json::parse(r.out)["K"]["fx"].get<double>(), 700.0);
   EXPECT_EQ(propcam("infer " + fixture_photo() + " -o " + out + " --fixed-focal").exit_code, 2);
   EXPECT_NE(propcam("infer " + fixture_photo() + " -o " + out + " --focal -3").exit_code, 0);
+}
+
+TEST(Cli, InferTakesThePhotosExifFocalLengthAsThePrior) {
+  // The fixture photo re-encoded as a JPEG saying "35 mm equivalent".
+  auto in = OIIO::ImageInput::open(fixture_photo());
+  ASSERT_TRUE(in);
+  OIIO::ImageSpec spec = in->spec();
+  std::vector<uint8_t> pixels(spec.image_pixels() * spec.nchannels);
+  ASSERT_TRUE(in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::UINT8, pixels.data()));
+  in->close();
+  spec.set_format(OIIO::TypeDesc::UINT8);
+  spec.attribute("Exif:FocalLengthIn35mmFilm", 35);
+  const std::string jpeg = temp("exif_photo.jpg");
+  auto out = OIIO::ImageOutput::create(jpeg);
+  ASSERT_TRUE(out && out->open(jpeg, spec) && out->write_image(OIIO::TypeDesc::UINT8, pixels.data()) && out->close());
+
+  const CliRun r = propcam("infer " + jpeg + " -o " + temp("scene_exif") + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const double expected = 35.0 * std::hypot(spec.width, spec.height) / 43.2666;
+  bool found = false;
+  const json reports = json_tail(r.out)["reports"];
+  for (const auto& rep : reports) {
+    if (rep["stage"] != "camera") continue;
+    found = true;
+    EXPECT_EQ(rep["details"]["focal_prior_source"], "Exif:FocalLengthIn35mmFilm");
+    EXPECT_NEAR(rep["details"]["focal_prior_px"].get<double>(), expected, 0.01);
+  }
+  EXPECT_TRUE(found) << r.out;
+  // A calibration on the command line wins over EXIF.
+  const CliRun c = propcam("infer " + jpeg + " -o " + temp("scene_exif2") + " --json --focal 300");
+  ASSERT_EQ(c.exit_code, 0) << c.out;
+  const json calibrated = json_tail(c.out)["reports"];
+  for (const auto& rep : calibrated)
+    if (rep["stage"] == "camera") EXPECT_DOUBLE_EQ(rep["details"]["focal_prior_px"].get<double>(), 300.0);
 }
 
 TEST(Cli, BenchReportsStagesAndPlots) {

@@ -21,6 +21,18 @@ cv::Mat linear_to_srgb8(const cv::Mat& linear);
 // Throws std::runtime_error naming the file on failure.
 cv::Mat load_photo_linear(const std::string& path);
 
+// The lens's focal length in pixels at the file's resolution, from its EXIF
+// metadata: the 35-mm-equivalent focal length (scaled by the diagonals, as
+// the equivalence is defined), else the focal length in mm times the focal
+// plane resolution (scaled to the stored size when the original size is
+// recorded). `source` names the tags used; focal_px is 0 when the file has
+// no usable tags (implausible values are ignored, not trusted).
+struct ExifLens {
+  double focal_px = 0;
+  std::string source;
+};
+ExifLens read_exif_focal(const std::string& path);
+
 // Reads any image as stored (float channels, no transfer function applied).
 cv::Mat read_image_float(const std::string& path);
 

@@ -49,6 +49,7 @@ struct CameraOptions {
   // then estimates the rotation only.
   double prior_focal_px = 0.0;
   bool fixed_focal = false;       // use the prior as the focal length (calibrated lens)
+  std::string prior_source;       // where prior_focal_px came from (reported): "calibration", "exif", ...
   int ransac_iterations = 300;    // line pairs sampled (length-weighted) as vanishing-point candidates
   int candidate_vps = 12;         // distinct best candidates kept; each pair of them is a Manhattan frame hypothesis
   int focal_hypotheses = 11;      // log-spaced focal values tried for a pair that does not fix the focal length

@@ -1,0 +1,73 @@
+#include <gtest/gtest.h>
+
+#include <OpenImageIO/imageio.h>
+
+#include <cmath>
+#include <filesystem>
+#include <string>
+
+#include "propcam/capture/image_file.h"
+
+namespace propcam::capture {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string temp(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / "propcam_image_file_test";
+  fs::create_directories(dir);
+  return (dir / name).string();
+}
+
+// A grey 640x480 JPEG carrying the given EXIF attributes.
+template <typename Fn>
+std::string jpeg_with(const std::string& name, Fn add_attributes) {
+  const std::string path = temp(name);
+  OIIO::ImageSpec spec(640, 480, 3, OIIO::TypeDesc::UINT8);
+  add_attributes(spec);
+  std::vector<uint8_t> pixels(640 * 480 * 3, 128);
+  auto out = OIIO::ImageOutput::create(path);
+  EXPECT_TRUE(out && out->open(path, spec) && out->write_image(OIIO::TypeDesc::UINT8, pixels.data()) && out->close());
+  return path;
+}
+
+TEST(ImageFile, SrgbRoundTripsAndLinearisesMidGrey) {
+  for (int v = 0; v < 256; ++v)
+    EXPECT_EQ(std::lround(linear_to_srgb(srgb_to_linear(v / 255.f)) * 255.f), v);
+  const cv::Mat photo = load_photo_linear(jpeg_with("grey.jpg", [](OIIO::ImageSpec&) {}));
+  ASSERT_EQ(photo.type(), CV_32FC3);
+  EXPECT_NEAR(photo.at<cv::Vec3f>(240, 320)[1], srgb_to_linear(128 / 255.f), 2e-3);
+}
+
+TEST(ImageFile, ExifEquivalentFocalLengthGivesPixels) {
+  // 28 mm equivalent: f = 28 / 43.27 mm of diagonal x 800 px of diagonal.
+  const ExifLens lens = read_exif_focal(jpeg_with("f35.jpg", [](OIIO::ImageSpec& s) {
+    s.attribute("Exif:FocalLengthIn35mmFilm", 28);
+  }));
+  EXPECT_NEAR(lens.focal_px, 28.0 * 800.0 / 43.2666, 0.01);
+  EXPECT_EQ(lens.source, "Exif:FocalLengthIn35mmFilm");
+}
+
+TEST(ImageFile, ExifFocalPlaneResolutionScaledToTheStoredSize) {
+  // 4 mm lens, 500 px per mm on a sensor read out 1280 px wide, stored at 640.
+  const ExifLens lens = read_exif_focal(jpeg_with("fplane.jpg", [](OIIO::ImageSpec& s) {
+    s.attribute("Exif:FocalLength", 4.0f);
+    s.attribute("Exif:FocalPlaneXResolution", 500.0f);
+    s.attribute("Exif:FocalPlaneResolutionUnit", 4);
+    s.attribute("Exif:PixelXDimension", 1280);
+  }));
+  EXPECT_NEAR(lens.focal_px, 4.0 * 500.0 * 640.0 / 1280.0, 0.5);
+}
+
+TEST(ImageFile, MissingOrImplausibleExifFocalIsIgnored) {
+  EXPECT_EQ(read_exif_focal(jpeg_with("none.jpg", [](OIIO::ImageSpec&) {})).focal_px, 0.0);
+  // 1 mm equivalent: a 180-degree lens; a bad tag, not trusted.
+  EXPECT_EQ(read_exif_focal(jpeg_with("absurd.jpg", [](OIIO::ImageSpec& s) {
+              s.attribute("Exif:FocalLengthIn35mmFilm", 1);
+            })).focal_px,
+            0.0);
+  EXPECT_THROW(read_exif_focal(temp("does_not_exist.jpg")), std::runtime_error);
+}
+
+}  // namespace
+}  // namespace propcam::capture
