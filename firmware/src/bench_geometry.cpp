@@ -213,24 +213,19 @@ json run_geometry_bench(const GeometryBenchOptions& o) {
   std::vector<Shot> shots;
   render::RenderSettings settings;
   settings.samples_per_pixel = o.spp;
-  for (int seed = 1; seed <= o.rooms; ++seed) {
-    progress.stage("rendering room " + std::to_string(seed));
-    render::SyntheticRoomSpec spec;
+  // Seeds 1..count of one generator (room or street spec, and its shoot function).
+  const auto render_scenes = [&](const std::string& kind, int count, auto spec, auto shoot) {
     spec.width = o.width;
     spec.height = o.height;
-    spec.seed = static_cast<uint64_t>(seed);
-    SyntheticShot s = shoot_synthetic_room(spec, settings);
-    shots.push_back({"room " + std::to_string(seed), s.photo_linear, s.truth});
-  }
-  for (int seed = 1; seed <= o.streets; ++seed) {
-    progress.stage("rendering street " + std::to_string(seed));
-    render::SyntheticStreetSpec spec;
-    spec.width = o.width;
-    spec.height = o.height;
-    spec.seed = static_cast<uint64_t>(seed);
-    SyntheticShot s = shoot_synthetic_street(spec, settings);
-    shots.push_back({"street " + std::to_string(seed), s.photo_linear, s.truth});
-  }
+    for (int seed = 1; seed <= count; ++seed) {
+      progress.stage("rendering " + kind + " " + std::to_string(seed));
+      spec.seed = static_cast<uint64_t>(seed);
+      SyntheticShot s = shoot(spec, settings);
+      shots.push_back({kind + " " + std::to_string(seed), s.photo_linear, s.truth});
+    }
+  };
+  render_scenes("room", o.rooms, render::SyntheticRoomSpec{}, shoot_synthetic_room);
+  render_scenes("street", o.streets, render::SyntheticStreetSpec{}, shoot_synthetic_street);
   if (shots.empty()) throw std::invalid_argument("bench geometry: no scenes (--rooms and --streets are 0)");
 
   json rows = json::array();
