@@ -103,6 +103,41 @@ double number_attribute(const OIIO::ImageSpec& spec, const char* name) {
 
 }  // namespace
 
+namespace {
+
+// Applies f to every channel value of a float image (any channel count).
+template <typename Fn>
+cv::Mat map_values(const cv::Mat& image, Fn f) {
+  CV_Assert(image.depth() == CV_32F);
+  cv::Mat out(image.size(), image.type());
+  const int n = image.cols * image.channels();
+  for (int y = 0; y < image.rows; ++y) {
+    const float* in = image.ptr<float>(y);
+    float* o = out.ptr<float>(y);
+    for (int x = 0; x < n; ++x) o[x] = f(in[x]);
+  }
+  return out;
+}
+
+void check_gamma(double gamma) {
+  if (!(gamma > 0) || !std::isfinite(gamma)) throw std::invalid_argument("camera response exponent must be positive and finite");
+}
+
+}  // namespace
+
+cv::Mat srgb_linear_to_response_linear(const cv::Mat& srgb_linear, double gamma) {
+  check_gamma(gamma);
+  const float g = static_cast<float>(gamma);
+  // Values above 1 (HDR input) keep the power law beyond the encoding's range.
+  return map_values(srgb_linear, [g](float v) { return std::pow(linear_to_srgb(std::max(v, 0.f)), g); });
+}
+
+cv::Mat response_linear_to_srgb_linear(const cv::Mat& response_linear, double gamma) {
+  check_gamma(gamma);
+  const float inv = static_cast<float>(1.0 / gamma);
+  return map_values(response_linear, [inv](float v) { return srgb_to_linear(std::pow(std::max(v, 0.f), inv)); });
+}
+
 ExifLens read_exif_focal(const std::string& path) {
   auto input = OIIO::ImageInput::open(path);
   if (!input) throw std::runtime_error("cannot open image '" + path + "': " + OIIO::geterror());

@@ -253,13 +253,16 @@ int cmd_composite(const CompositeArgs& a) {
   options.plan.allow_skips = !a.no_cull;
   options.light_layers = !a.light_scale.empty();
   options.scene_layers_width = a.relight_scene && !a.light_scale.empty() ? kSceneLayerWidth : 0;
-  const CompositeResult result = composite_prop(photo, scene, prop, placement, settings, options);
+  // Light is added in the photo's own linear space: its camera response
+  // (fitted with the light intensities) undone, and redone at the end.
+  const cv::Mat scene_photo = capture::srgb_linear_to_response_linear(photo, scene.gamma);
+  const CompositeResult result = composite_prop(scene_photo, scene, prop, placement, settings, options);
   const json plan = render_plan_json(result);
   cv::Mat final_image = result.composite_linear;
   if (!a.light_scale.empty()) {
     const render::LightScales scales = parse_light_scales(a.light_scale, static_cast<int>(result.layers.change.size()));
-    final_image = a.relight_scene ? render::relight_scene(photo, result.layers, result.scene_layers, scales)
-                                  : render::relight_prop(photo, result.layers, scales);
+    final_image = a.relight_scene ? render::relight_scene(scene_photo, result.layers, result.scene_layers, scales)
+                                  : render::relight_prop(scene_photo, result.layers, scales);
   }
   json dof_json = nullptr;
   if (a.aperture > 0) {
@@ -271,7 +274,7 @@ int cmd_composite(const CompositeArgs& a) {
     final_image = render::apply_depth_of_field(final_image, result.depth, scene.fx, dof);
     dof_json = {{"aperture_m", dof.aperture_m}, {"focus_m", dof.focus_distance_m}};
   }
-  capture::write_image(a.out, final_image);
+  capture::write_image(a.out, capture::response_linear_to_srgb_linear(final_image, scene.gamma));
   const auto& st = result.render.stats;
   const double skipped = st.camera_samples ? static_cast<double>(st.paths_prop_untouched) / st.camera_samples : 0.0;
   json summary = {{"output", a.out},

@@ -197,7 +197,7 @@ SceneModel infer_scene(const cv::Mat& photo_linear, const InferenceOptions& opti
                                                 options.lighting, scene.indoor ? nullptr : &g.sky);
   scene.lights = std::move(lighting.lights);
   for (auto& r : lighting.reports) scene.reports.push_back(std::move(r));
-  scene.gamma = 2.2;  // photos are linearised with the sRGB curve; fitting it is a later issue
+  scene.gamma = lighting.gamma;  // fitted with the intensities
   scene.validate();
   return scene;
 }

@@ -8,6 +8,8 @@
 #include <numbers>
 #include <opencv2/imgproc.hpp>
 
+#include "propcam/capture/image_file.h"
+#include "propcam/inference/intensity_fit.h"
 #include "propcam/render/depth_mesh.h"
 #include "propcam/render/path_tracer.h"
 #include "propcam/render/scene.h"
@@ -21,10 +23,8 @@ using Clock = std::chrono::steady_clock;
 // Source quads are pulled this far toward the camera off the surface they were seen on.
 constexpr double kSourceStandOffM = 0.02;
 constexpr double kSaturatedLinear = 0.98;
-// Basis renders with less energy than this (absolute, or relative to the
-// brightest basis) light nothing the fit can see.
+// A channel whose fitted lights carry less energy than this gets no gain.
 constexpr double kMinBasisEnergy = 1e-12;
-constexpr double kMinRelativeBasisEnergy = 1e-12;
 // The per-channel balance may tint the fitted lights this much, no more.
 constexpr double kMinChannelGain = 0.25, kMaxChannelGain = 4.0;
 // No channel of a seen source's colour drops below this share of its luminance.
@@ -70,41 +70,6 @@ LightSource quad_from_points(const std::vector<Vector3d>& points, const Vector3d
   if (l.edge_u.cross(l.edge_v).dot(normal) < 0) std::swap(l.edge_u, l.edge_v);
   l.position = l.corner + 0.5 * (l.edge_u + l.edge_v);
   return l;
-}
-
-struct NnlsResult {
-  Eigen::VectorXd weights;
-  int iterations = 0;
-  bool converged = false;
-};
-
-// min |Rw - y|^2 + sparsity * sum_i w_i |r_i| |r_max|, lower <= w <= upper, by
-// cyclic coordinate descent on the normal equations A = R'R, b = R'y. The L1
-// weight acts on each basis render normalised to unit energy, so a faint but
-// right source (a far sun) is not priced out by a bright one.
-NnlsResult solve_nnls_l1(const Eigen::MatrixXd& A, const Eigen::VectorXd& b, const std::vector<double>& lower,
-                         const std::vector<double>& upper, double sparsity, int max_iterations, double tolerance) {
-  const int k = static_cast<int>(b.size());
-  const double scale = std::max(k > 0 ? A.diagonal().maxCoeff() : 0.0, kMinBasisEnergy);
-  NnlsResult out;
-  out.weights = Eigen::VectorXd::Zero(k);
-  for (int i = 0; i < k; ++i) out.weights[i] = std::max(0.0, lower[i]);
-  Eigen::VectorXd& w = out.weights;
-  for (; out.iterations < max_iterations && !out.converged; ++out.iterations) {
-    double change = 0, size = 0;
-    for (int i = 0; i < k; ++i) {
-      if (A(i, i) <= kMinRelativeBasisEnergy * scale) continue;  // a light that lights nothing stays off
-      const double rest = b[i] - A.row(i).dot(w) + A(i, i) * w[i];
-      const double penalty = sparsity * std::sqrt(scale * A(i, i));
-      const double lo = std::max(0.0, lower[i]);
-      const double updated = std::clamp((rest - penalty) / A(i, i), lo, std::max(lo, upper[i]));
-      change = std::max(change, std::abs(updated - w[i]));
-      size = std::max(size, std::abs(updated));
-      w[i] = updated;
-    }
-    out.converged = change <= tolerance * std::max(size, kMinBasisEnergy);
-  }
-  return out;
 }
 
 Vector3d unit_luminance_colour(const Vector3d& rgb) {
@@ -296,7 +261,7 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   out.reports.push_back(env);
 
   // --- Intensities: basis renders of the empty scene, one light at a time,
-  //     then non-negative least squares with an L1 sparsity prior per channel.
+  //     then the paper's fit of intensities and camera response.
   start = Clock::now();
   const int fit_w = std::min(options.fit_width, camera.width);
   const int fit_h = std::max(1, static_cast<int>(std::lround(static_cast<double>(fit_w) * camera.height / camera.width)));
@@ -321,6 +286,8 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   const int k = rig.count();
   std::vector<cv::Mat> basis;
   for (int i = 0; i < k; ++i) basis.push_back(render::render_image(scene, fit_camera, rig.only(i), settings));
+  const double basis_seconds = seconds_since(start);
+  const auto fit_start = Clock::now();
   // Pixels that inform the fit: not the sources themselves, not clipped.
   std::vector<cv::Point> used;
   for (int y = 0; y < fit_h; ++y)
@@ -350,41 +317,69 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   };
   std::vector<double> lower(k, 0.0), upper(k, std::numeric_limits<double>::infinity());
   if (sky_calibrated) lower[k - 1] = upper[k - 1] = 1.0;  // the environment is last, and measured
-  // Which lights and how bright: a sparse fit on luminance (fitting each
-  // channel on its own lets a light turn a colour no lamp has, e.g. a
-  // blue-only sun).
-  Eigen::MatrixXd A;
-  Eigen::VectorXd b;
-  normal_equations(3, A, b);
-  NnlsResult chosen = solve_nnls_l1(A, b, lower, upper, options.sparsity, options.max_fit_iterations, options.fit_tolerance);
+  // Which lights, how bright, and the camera response: the paper's fit
+  // (intensity_fit.h) on luminance, the photo as the camera encoded it
+  // (fitting each channel on its own lets a light turn a colour no lamp has,
+  // e.g. a blue-only sun).
+  std::vector<cv::Point> fit_pixels;  // at most max_fit_pixels of them, evenly spread
+  const size_t max_pixels = static_cast<size_t>(std::max(1, options.max_fit_pixels));
+  const size_t stride = std::max<size_t>(1, (used.size() + max_pixels - 1) / max_pixels);
+  for (size_t i = 0; i < used.size(); i += stride) fit_pixels.push_back(used[i]);
+  IntensityFitProblem problem;
+  problem.lower = lower;
+  problem.upper = upper;
+  problem.basis.assign(k, std::vector<float>(fit_pixels.size()));
+  for (int i = 0; i < k; ++i) {
+    for (size_t n = 0; n < fit_pixels.size(); ++n) problem.basis[i][n] = static_cast<float>(basis_value(i, fit_pixels[n], 3));
+    problem.noise.push_back(basis_noise(basis[i], {}));
+  }
+  for (const auto& p : fit_pixels)
+    problem.target.push_back(capture::linear_to_srgb(static_cast<float>(photo_value(p, 3))));
+  IntensityFitOptions fit_options = options.fit;
+  fit_options.max_seconds = std::max(0.05, options.fit.max_seconds);
+  const auto solve = [&](const std::vector<double>& upper_bounds, const IntensityFitOptions& o) {
+    problem.upper = upper_bounds;
+    return fit_intensities(problem, o);
+  };
+  IntensityFitResult chosen = solve(upper, fit_options);
   // Outdoors there is one sun: of the sun hypotheses the fit used, keep the
   // one that alone (with the other lights) explains the photo best.
   const int suns_begin = static_cast<int>(visible_sources), suns_end = k - 1;
   int suns_used = 0;
   for (int i = suns_begin; i < suns_end; ++i) suns_used += chosen.weights[i] > 0;
   if (!indoor && suns_used > 1) {
-    double best_cost = std::numeric_limits<double>::infinity();
-    NnlsResult best;
+    // The response is settled: each one-sun refit keeps it.
+    IntensityFitOptions one_sun = fit_options;
+    one_sun.fit_gamma = false;
+    one_sun.gamma0 = chosen.gamma;
+    IntensityFitResult best;
+    double best_error = std::numeric_limits<double>::infinity();
+    int iterations = chosen.iterations;
     for (int sun = suns_begin; sun < suns_end; ++sun) {
       if (!(chosen.weights[sun] > 0)) continue;
       std::vector<double> bound = upper;
       for (int i = suns_begin; i < suns_end; ++i)
         if (i != sun) bound[i] = 0.0;
-      NnlsResult one = solve_nnls_l1(A, b, lower, bound, options.sparsity, options.max_fit_iterations, options.fit_tolerance);
-      // |Rw - y|^2 up to the constant |y|^2.
-      const double cost = one.weights.dot(A * one.weights) - 2.0 * one.weights.dot(b);
-      if (cost < best_cost) {
-        best_cost = cost;
+      IntensityFitResult one = solve(bound, one_sun);
+      iterations += one.iterations;
+      if (one.data_error < best_error) {
+        best_error = one.data_error;
         best = std::move(one);
       }
     }
-    best.iterations += chosen.iterations;
+    best.iterations = iterations;
     chosen = std::move(best);
   }
+  // The photo, linear under the fitted response: what the gains and the
+  // error below compare against (and what the compositor relights).
+  const double response = 1.0 / chosen.gamma;
+  const auto photo_response = [&](const cv::Point& p, int c) {
+    return std::pow(static_cast<double>(capture::linear_to_srgb(static_cast<float>(photo_value(p, c)))), response);
+  };
   std::vector<bool> active(k);
   for (int i = 0; i < k; ++i) active[i] = chosen.weights[i] > 0;
-  int max_iterations_used = chosen.iterations;
-  bool converged = chosen.converged;
+  const int max_iterations_used = chosen.iterations;
+  const bool converged = chosen.converged;
   double residual = 0, signal = 0;
   // Colour: each light keeps its own colour (a seen source the colour it has
   // in the photo, unseen ones white) and one gain per channel balances the
@@ -399,7 +394,7 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
       double others = 0;
       for (int i = 0; i < k; ++i)
         if (i != fixed && active[i]) others += chosen.weights[i] * colours[i][c] * basis_value(i, p, c);
-      const double target = photo_value(p, c) - (fixed >= 0 ? basis_value(fixed, p, c) : 0.0);
+      const double target = photo_response(p, c) - (fixed >= 0 ? basis_value(fixed, p, c) : 0.0);
       oo += others * others;
       oy += others * target;
     }
@@ -409,7 +404,7 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
     for (const auto& p : used) {
       double predicted = 0;
       for (int i = 0; i < k; ++i) predicted += weights[i][c] * basis_value(i, p, c);
-      const double observed = photo_value(p, c);
+      const double observed = photo_response(p, c);
       residual += (observed - predicted) * (observed - predicted);
       signal += observed * observed;
     }
@@ -439,9 +434,14 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   fit.seconds = seconds_since(start);
   fit.error = signal > 0 ? std::sqrt(residual / signal) : 0.0;  // relative RMS of the re-render
   fit.details = {{"basis_renders", k}, {"resolution", {fit_w, fit_h}}, {"samples_per_pixel", settings.samples_per_pixel},
-                 {"converged", converged}, {"pixels", used.size()},
+                 {"converged", converged}, {"termination", chosen.termination}, {"pixels", used.size()},
+                 {"fit_pixels", fit_pixels.size()}, {"gamma_solves", chosen.solves},
+                 {"camera_response_gamma", chosen.gamma}, {"response_exponent", response},
+                 {"fit_error_encoded", chosen.data_error},
+                 {"basis_render_seconds", basis_seconds}, {"fit_seconds", seconds_since(fit_start)},
                  {"visible_sources", visible_sources}, {"hypotheses", hypotheses}, {"kept", out.lights.size()}};
   out.reports.push_back(fit);
+  out.gamma = response;
   return out;
 }
 

@@ -71,3 +71,26 @@ TEST(ImageFile, MissingOrImplausibleExifFocalIsIgnored) {
 
 }  // namespace
 }  // namespace propcam::capture
+
+namespace propcam::capture {
+namespace {
+
+TEST(ImageFile, CameraResponseRoundTripsAndMatchesAPowerLaw) {
+  cv::Mat photo(1, 5, CV_32FC3);
+  const float values[5] = {0.f, 0.002f, 0.18f, 0.7f, 1.5f};
+  for (int i = 0; i < 5; ++i) photo.at<cv::Vec3f>(0, i) = {values[i], values[i], values[i]};
+  for (double gamma : {1.8, 2.2, 2.6}) {
+    const cv::Mat response = srgb_linear_to_response_linear(photo, gamma);
+    const cv::Mat back = response_linear_to_srgb_linear(response, gamma);
+    for (int i = 0; i < 5; ++i) {
+      EXPECT_NEAR(back.at<cv::Vec3f>(0, i)[0], values[i], 1e-5f * (1 + values[i])) << gamma;
+      // The camera wrote sRGB-encoded value e; under this response, e^gamma.
+      EXPECT_NEAR(response.at<cv::Vec3f>(0, i)[1], std::pow(linear_to_srgb(values[i]), gamma), 1e-6);
+    }
+  }
+  EXPECT_THROW(srgb_linear_to_response_linear(photo, 0.0), std::invalid_argument);
+  EXPECT_THROW(response_linear_to_srgb_linear(photo, std::nan("")), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace propcam::capture

@@ -16,6 +16,14 @@ float linear_to_srgb(float linear);
 cv::Mat srgb8_to_linear(const cv::Mat& srgb8);
 cv::Mat linear_to_srgb8(const cv::Mat& linear);
 
+// The camera response: a photo decoded with the sRGB curve (as
+// load_photo_linear does) re-linearised as if the camera wrote
+// encoded = linear^(1/gamma) (inference fits gamma with the light
+// intensities), and back. A pixel taken there and back is unchanged
+// (up to float rounding), so untouched photo pixels stay as they were.
+cv::Mat srgb_linear_to_response_linear(const cv::Mat& srgb_linear, double gamma);
+cv::Mat response_linear_to_srgb_linear(const cv::Mat& response_linear, double gamma);
+
 // Reads a photo as linear RGB CV_32FC3. 8/16-bit files are taken as sRGB-encoded;
 // float files (EXR, HDR) as linear. Grey is expanded to RGB, alpha dropped.
 // Throws std::runtime_error naming the file on failure.

@@ -2,13 +2,14 @@
 // visible light sources from bright regions lifted to 3D quads, out-of-view
 // light as the photo wrapped onto a sphere (Khan et al. 2006), and light
 // intensities fitted so that a render of the empty scene matches the photo
-// (the paper's basis-render optimisation, without the camera-response term).
+// (the paper's basis-render optimisation with its camera-response term).
 #pragma once
 
 #include <opencv2/core.hpp>
 #include <vector>
 
 #include "propcam/inference/albedo.h"
+#include "propcam/inference/intensity_fit.h"
 #include "propcam/inference/scene_model.h"
 #include "propcam/inference/sky.h"
 #include "propcam/render/camera.h"
@@ -25,9 +26,9 @@ struct LightingOptions {
   int fit_width = 160;                  // basis renders' resolution
   int fit_samples_per_pixel = 8;
   int fit_bounces = 2;
-  int max_fit_iterations = 500;
-  double fit_tolerance = 1e-7;          // relative change that ends coordinate descent
-  double sparsity = 1e-3;               // L1 weight on intensities (the paper's sparsity prior)
+  // The intensity and camera-response fit (the paper's priors and weights).
+  IntensityFitOptions fit;
+  int max_fit_pixels = 1024;            // fit pixels, evenly spread over the usable ones
   // Out-of-view source hypotheses the fit chooses among (and prunes): a grid
   // of ceiling panels indoors, sun directions outdoors.
   int ceiling_grid = 3;                 // n x n panels
@@ -41,6 +42,10 @@ struct LightingEstimate {
   std::vector<LightSource> lights;  // intensities fitted
   cv::Mat source_mask;              // CV_8U, 255 on detected source pixels
   std::vector<StageReport> reports; // sources, environment, intensity fit
+  // Camera response: encoded = linear^(1/gamma), fitted with the intensities
+  // (SceneModel::gamma). Light intensities are in the units of the photo
+  // linearised with it.
+  double gamma = 2.2;
 };
 
 LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& depth, const cv::Mat& albedo,
