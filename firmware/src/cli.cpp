@@ -15,6 +15,7 @@
 #include "bench_render.h"
 #include "bench_camera.h"
 #include "bench_geometry.h"
+#include "bench_lighting.h"
 #include "bench_transfer.h"
 #include "depth_database_builder.h"
 #include "compositor.h"
@@ -578,6 +579,8 @@ int run_cli(int argc, char** argv) {
   auto* bench_geometry = add_bench_geometry_command(*bench, bench_geometry_args);
   TransferBenchArgs bench_transfer_args;
   auto* bench_transfer = add_bench_transfer_command(*bench, bench_transfer_args);
+  LightingBenchArgs bench_lighting_args;
+  auto* bench_lighting = add_bench_lighting_command(*bench, bench_lighting_args);
 
   RenderBenchOptions render_bench_options;
   bool render_bench_json = false;
@@ -649,6 +652,7 @@ int run_cli(int argc, char** argv) {
     if (*bench_camera) return run_bench_camera_command(bench_camera_args);
     if (*bench_geometry) return run_bench_geometry_command(bench_geometry_args);
     if (*bench_transfer) return run_bench_transfer_command(bench_transfer_args);
+    if (*bench_lighting) return run_bench_lighting_command(bench_lighting_args);
     if (*bench) {
       if (!parse_pair(bench_size, bench_options.width, bench_options.height, 'x') || bench_options.width < 32 ||
           bench_options.height < 32)

@@ -163,14 +163,20 @@ GeometryEstimate infer_geometry(const cv::Mat& photo, const InferenceOptions& op
   return g;
 }
 
-SceneModel infer_scene(const cv::Mat& photo_linear, const InferenceOptions& options) {
+namespace {
+
+// NaN becomes 0 and infinities a bright but finite radiance, so no stage sees them.
+cv::Mat sanitised(const cv::Mat& photo_linear, const InferenceOptions& options) {
   check_photo(photo_linear, options);
-  // NaN becomes 0 and infinities a bright but finite radiance, so no stage sees them.
   cv::Mat photo = photo_linear.clone();
   cv::patchNaNs(photo, 0.0);
-  photo = cv::min(cv::max(photo, 0.0), kMaxPhotoRadiance);
+  return cv::min(cv::max(photo, 0.0), kMaxPhotoRadiance);
+}
 
-  GeometryEstimate g = infer_geometry(photo, options);
+}  // namespace
+
+SceneModel complete_scene(const cv::Mat& photo_linear, const GeometryEstimate& g, const InferenceOptions& options) {
+  const cv::Mat photo = sanitised(photo_linear, options);
   SceneModel scene;
   scene.width = photo.cols;
   scene.height = photo.rows;
@@ -200,6 +206,11 @@ SceneModel infer_scene(const cv::Mat& photo_linear, const InferenceOptions& opti
   scene.gamma = lighting.gamma;  // fitted with the intensities
   scene.validate();
   return scene;
+}
+
+SceneModel infer_scene(const cv::Mat& photo_linear, const InferenceOptions& options) {
+  const cv::Mat photo = sanitised(photo_linear, options);
+  return complete_scene(photo, infer_geometry(photo, options), options);
 }
 
 }  // namespace propcam::inference

@@ -12,6 +12,9 @@ using nlohmann::json;
 
 namespace {
 
+// A point light is rendered as a sphere this small (m): a bulb.
+constexpr float kPointLightRadiusM = 0.05f;
+
 json vec(const Eigen::Vector3d& v) { return json::array({v.x(), v.y(), v.z()}); }
 
 Eigen::Vector3d vec3(const json& j, const char* what) {
@@ -75,6 +78,17 @@ render::LightRig make_light_rig(const std::vector<LightSource>& lights, bool uni
       a.edge_v = l.edge_v.cast<float>();
       a.radiance = intensity;
       rig.area_lights.push_back(a);
+    } else if (l.type == LightSource::Type::Sun) {
+      render::SunLight sun;
+      sun.direction = l.direction.cast<float>();
+      sun.irradiance = intensity;
+      rig.suns.push_back(sun);
+    } else if (l.type == LightSource::Type::Point) {
+      render::SphereLight bulb;
+      bulb.center = l.position.cast<float>();
+      bulb.radius = kPointLightRadiusM;
+      bulb.radiance = intensity;
+      rig.sphere_lights.push_back(bulb);
     } else if (l.type == LightSource::Type::Ibl && !l.environment.empty()) {
       rig.environment = std::make_shared<render::EnvironmentLight>(l.environment, intensity);
     }

@@ -255,6 +255,25 @@ TEST(Cli, BenchGeometryReportsErrorsAgainstSecondsAndPlots) {
   EXPECT_EQ(propcam("bench geometry --sweeps nonsense").exit_code, 2);
 }
 
+TEST(Cli, BenchLightingReportsErrorsAgainstSecondsBesideTheBaseline) {
+  const std::string plots = temp("lighting_plots");
+  const CliRun r = propcam("bench lighting --rooms 1 --streets 1 --size 128x96 --spp 4 --sweeps response --json --plot " +
+                           plots);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const json b = json_tail(r.out);
+  ASSERT_EQ(b["rows"].size(), 4u);  // baseline, default, two response settings
+  EXPECT_EQ(b["rows"][0]["sweep"], "baseline");
+  for (const auto& row : b["rows"]) {
+    for (const char* k : {"direction_deg_median", "composite_rel_rmse_median", "gamma_median", "seconds_mean"}) {
+      ASSERT_TRUE(row["all"][k].is_number()) << row["label"] << " " << k;
+      EXPECT_TRUE(std::isfinite(row["all"][k].get<double>())) << row["label"] << " " << k;
+    }
+    EXPECT_TRUE(row.contains("rooms") && row.contains("streets"));
+  }
+  EXPECT_GT(fs::file_size(plots + "/lighting.png"), 1000u);
+  EXPECT_EQ(propcam("bench lighting --sweeps nonsense").exit_code, 2);
+}
+
 TEST(Cli, BuildDepthDbThenBenchTransferOnIt) {
   const std::string db = temp("depth_db") + "/rooms.bin";
   const CliRun built = propcam("build-depth-db -o " + db + " --rooms 3 --streets 0 --spp 2");

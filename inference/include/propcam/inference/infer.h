@@ -67,6 +67,11 @@ struct GeometryEstimate {
 // `photo` as infer_scene sanitises it (finite, clipped); same errors as infer_scene.
 GeometryEstimate infer_geometry(const cv::Mat& photo, const InferenceOptions& options);
 
+// The rest of inference on a geometry estimate of the same photo: albedo,
+// light sources, intensities and camera response (what `propcam bench
+// lighting` sweeps without redoing the geometry).
+SceneModel complete_scene(const cv::Mat& photo, const GeometryEstimate& geometry, const InferenceOptions& options);
+
 // `photo_linear` is CV_32FC3 linear RGB. Throws std::invalid_argument for an
 // empty or too small photo; otherwise always returns a finite model whose
 // reports say which fallbacks applied.

@@ -29,7 +29,9 @@ struct LightSource {
   Type type = Type::Area;
   Eigen::Vector3d position = Eigen::Vector3d::Zero();   // area/point: centre (world)
   Eigen::Vector3d direction = Eigen::Vector3d::Zero();  // sun: toward the light
-  Eigen::Vector3d intensity = Eigen::Vector3d::Ones();  // linear RGB radiance scale
+  // Linear RGB: radiance for area, point (a 5 cm bulb) and IBL lights (a
+  // scale of the map); for a sun, the irradiance it gives a surface facing it.
+  Eigen::Vector3d intensity = Eigen::Vector3d::Ones();
   // Area: the quad (world), emitting on the side of edge_u x edge_v.
   Eigen::Vector3d corner = Eigen::Vector3d::Zero(), edge_u = Eigen::Vector3d::Zero(),
                   edge_v = Eigen::Vector3d::Zero();
