@@ -36,6 +36,7 @@ constexpr int kLightVectorSamples = 2048;
 // cleaned of render-noise specks, then grown by a few pixels.
 constexpr double kRegionThresholdOfMean = 0.15;
 constexpr int kRegionGrowPx = 2;
+constexpr double kNoiseBlurSigmaPx = 1.5;
 // Yaw of the prop (degrees): a cube turned off the room's axes shows two faces.
 constexpr double kPropYawDeg = 30.0;
 // Resolution of the baseline's environment (the photo wrapped onto a sphere).
@@ -131,9 +132,15 @@ cv::Mat composite_like_the_cli(const cv::Mat& photo, const inference::SceneModel
   return capture::response_linear_to_srgb_linear(r.composite_linear, scene.gamma);
 }
 
+// Both images are blurred first: at bench sample counts the per-pixel Monte
+// Carlo noise of reference and composite would otherwise swamp the lighting's
+// error (shading and shadow are smooth at this scale).
 double composite_error(const Shot& s, const cv::Mat& composite) {
   if (cv::countNonZero(s.region) == 0) return std::nan("");
-  return rmse_in_mask(composite, s.reference, s.region) / std::max(1e-9, mean_luminance(s.reference, s.region));
+  cv::Mat a, b;
+  cv::GaussianBlur(composite, a, {0, 0}, kNoiseBlurSigmaPx);
+  cv::GaussianBlur(s.reference, b, {0, 0}, kNoiseBlurSigmaPx);
+  return rmse_in_mask(a, b, s.region) / std::max(1e-9, mean_luminance(b, s.region));
 }
 
 Errors evaluate(const Shot& s, const inference::InferenceOptions& o, const render::Mesh& prop, int spp) {

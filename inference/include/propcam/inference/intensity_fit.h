@@ -39,8 +39,8 @@ struct IntensityFitOptions {
   bool fit_gamma = true;       // false: gamma stays gamma0
   double min_gamma = 0.2, max_gamma = 1.5;
   double smooth_abs_epsilon = 1e-6;  // |x| ~ sqrt(x^2 + eps)
-  int gamma_grid = 5;          // log-spaced responses tried in [min_gamma, max_gamma]
-  int gamma_refinements = 6;   // golden-section steps around the best of them
+  int gamma_grid = 4;          // log-spaced responses tried in [min_gamma, max_gamma]
+  int gamma_refinements = 5;   // golden-section steps around the best of them
   int max_iterations = 100;    // per weight solve
   double max_seconds = 2.0;    // per weight solve
   // A weight whose light contributes less than this share of the fitted

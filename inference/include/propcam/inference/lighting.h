@@ -28,7 +28,7 @@ struct LightingOptions {
   int fit_bounces = 2;
   // The intensity and camera-response fit (the paper's priors and weights).
   IntensityFitOptions fit;
-  int max_fit_pixels = 1024;            // fit pixels, evenly spread over the usable ones
+  int max_fit_pixels = 512;             // fit pixels, evenly spread over the usable ones
   // Out-of-view source hypotheses the fit chooses among (and prunes): a grid
   // of ceiling panels indoors, sun directions outdoors.
   int ceiling_grid = 3;                 // n x n panels
