@@ -16,6 +16,7 @@
 #include "bench_camera.h"
 #include "bench_geometry.h"
 #include "bench_lighting.h"
+#include "light_training.h"
 #include "bench_transfer.h"
 #include "depth_database_builder.h"
 #include "compositor.h"
@@ -543,6 +544,8 @@ int run_cli(int argc, char** argv) {
 
   DepthDatabaseSpec depth_db_spec;
   std::string depth_db_out;
+  LightTrainingArgs train_lights_args;
+  auto* train_lights = add_train_light_classifier_command(app, train_lights_args);
   auto* build_depth_db = app.add_subcommand(
       "build-depth-db", "Render the depth-transfer database from generator scenes (scripts/build_depth_db.sh)");
   build_depth_db->add_option("-o,--output", depth_db_out, "Database file to write")->required();
@@ -581,6 +584,8 @@ int run_cli(int argc, char** argv) {
   auto* bench_transfer = add_bench_transfer_command(*bench, bench_transfer_args);
   LightingBenchArgs bench_lighting_args;
   auto* bench_lighting = add_bench_lighting_command(*bench, bench_lighting_args);
+  LightTrainingArgs bench_lights_args;
+  auto* bench_lights = add_bench_lights_command(*bench, bench_lights_args);
 
   RenderBenchOptions render_bench_options;
   bool render_bench_json = false;
@@ -629,6 +634,7 @@ int run_cli(int argc, char** argv) {
     if (*composite) return cmd_composite(comp);
     if (*props) return cmd_props(props_json);
     if (*synth) return cmd_synth(synth_args);
+    if (*train_lights) return run_train_light_classifier_command(train_lights_args);
     if (*build_depth_db) {
       const inference::DepthDatabase db = build_depth_database(depth_db_spec);
       db.save(depth_db_out);
@@ -653,6 +659,7 @@ int run_cli(int argc, char** argv) {
     if (*bench_geometry) return run_bench_geometry_command(bench_geometry_args);
     if (*bench_transfer) return run_bench_transfer_command(bench_transfer_args);
     if (*bench_lighting) return run_bench_lighting_command(bench_lighting_args);
+    if (*bench_lights) return run_bench_lights_command(bench_lights_args);
     if (*bench) {
       if (!parse_pair(bench_size, bench_options.width, bench_options.height, 'x') || bench_options.width < 32 ||
           bench_options.height < 32)

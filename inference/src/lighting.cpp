@@ -5,11 +5,15 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <map>
+#include <memory>
+#include <mutex>
 #include <numbers>
 #include <opencv2/imgproc.hpp>
 
 #include "propcam/capture/image_file.h"
 #include "propcam/inference/intensity_fit.h"
+#include "propcam/inference/light_classifier.h"
 #include "propcam/render/depth_mesh.h"
 #include "propcam/render/path_tracer.h"
 #include "propcam/render/scene.h"
@@ -29,6 +33,24 @@ constexpr double kMinBasisEnergy = 1e-12;
 constexpr double kMinChannelGain = 0.25, kMaxChannelGain = 4.0;
 // No channel of a seen source's colour drops below this share of its luminance.
 constexpr double kMinSourceChannel = 0.05;
+
+// Classifiers stay loaded once read; a missing or broken one is reported
+// (the threshold detector then works alone).
+std::shared_ptr<const LightClassifier> cached_light_classifier(const std::string& requested, std::string& why) {
+  static std::mutex mutex;
+  static std::map<std::string, std::shared_ptr<const LightClassifier>> cache;
+  const std::string path = requested.empty() ? default_light_classifier_path() : requested;
+  std::lock_guard lock(mutex);
+  if (auto it = cache.find(path); it != cache.end()) return it->second;
+  try {
+    auto model = std::make_shared<const LightClassifier>(LightClassifier::load(path));
+    cache[path] = model;
+    return model;
+  } catch (const std::exception& e) {
+    why = e.what();
+    return nullptr;
+  }
+}
 
 double seconds_since(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
@@ -189,6 +211,19 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   cv::minMaxLoc(lum, nullptr, &max_lum);
   const double threshold = std::max(options.min_source_luminance, options.bright_fraction_of_max * max_lum);
   cv::Mat bright = lum >= threshold;
+  // The light classifier keeps the bright pixels of superpixels that emit
+  // (a white wall or a lit floor is bright too).
+  std::string detector = "threshold";
+  StageReport sources;
+  if (options.light_classifier != "none") {
+    std::string why;
+    if (const auto model = cached_light_classifier(options.light_classifier, why)) {
+      bright &= model->source_mask(photo_linear, options.classifier, &sources);
+      detector = "classifier";
+    } else {
+      detector = "threshold (" + why + ")";
+    }
+  }
   cv::morphologyEx(bright, bright, cv::MORPH_OPEN, cv::getStructuringElement(cv::MORPH_ELLIPSE, {3, 3}));
   cv::Mat labels, stats, centroids;
   const int n = cv::connectedComponentsWithStats(bright, labels, stats, centroids, 8, CV_32S);
@@ -228,13 +263,15 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
     out.lights.push_back(quad_from_points(points, camera.center_world));
     colours.push_back(unit_luminance_colour(colour_sum));
   }
-  StageReport sources;
   sources.stage = "light_sources";
   sources.usable = true;
   sources.why = out.lights.empty() ? "no bright region above the floor: light comes from outside the frame"
                                    : std::to_string(out.lights.size()) + " bright regions above " + std::to_string(threshold);
   sources.seconds = seconds_since(start);
-  sources.details = {{"threshold", threshold}, {"regions", regions.size()}, {"rejected_on_floor", on_floor}};
+  sources.details["detector"] = detector;
+  sources.details["threshold"] = threshold;
+  sources.details["regions"] = regions.size();
+  sources.details["rejected_on_floor"] = on_floor;
   out.reports.push_back(sources);
 
   const size_t visible_sources = out.lights.size();

@@ -13,6 +13,7 @@
 
 #include "propcam/capture/image_file.h"
 #include "propcam/inference/depth_transfer.h"
+#include "propcam/inference/light_classifier.h"
 #include "propcam/render/camera.h"
 
 namespace {
@@ -272,6 +273,20 @@ TEST(Cli, BenchLightingReportsErrorsAgainstSecondsBesideTheBaseline) {
   }
   EXPECT_GT(fs::file_size(plots + "/lighting.png"), 1000u);
   EXPECT_EQ(propcam("bench lighting --sweeps nonsense").exit_code, 2);
+}
+
+TEST(Cli, TrainLightClassifierThenBenchLights) {
+  const std::string model = temp("light_model") + "/lights.yml.gz";
+  const CliRun trained =
+      propcam("train-light-classifier -o " + model + " --panoramas interior,sunset --views-per-turn 2 --trees 5");
+  ASSERT_EQ(trained.exit_code, 0) << trained.out;
+  EXPECT_NO_THROW(propcam::inference::LightClassifier::load(model));
+  const CliRun r = propcam("bench lights --panoramas interior,courtyard,sunset --views-per-turn 2 --trees 5 --json");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const json b = json_tail(r.out);
+  ASSERT_EQ(b["held_out"].size(), 3u);
+  for (const char* d : {"classifier", "threshold", "both"})
+    for (const char* k : {"precision", "recall", "f1", "ms_per_view"}) EXPECT_TRUE(b["all"][d][k].is_number()) << d << k;
 }
 
 TEST(Cli, BuildDepthDbThenBenchTransferOnIt) {

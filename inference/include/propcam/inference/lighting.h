@@ -10,6 +10,7 @@
 
 #include "propcam/inference/albedo.h"
 #include "propcam/inference/intensity_fit.h"
+#include "propcam/inference/light_classifier.h"
 #include "propcam/inference/scene_model.h"
 #include "propcam/inference/sky.h"
 #include "propcam/render/camera.h"
@@ -22,6 +23,10 @@ struct LightingOptions {
   double min_source_luminance = 0.6;    // and at least this bright (linear)
   double min_source_area_fraction = 2e-4;
   double min_source_height_m = 0.1;     // bright regions lower than this lie on the floor: lit, not lamps
+  // The visible-light classifier (light_classifier.h): empty, the committed
+  // model; "none", the brightness threshold alone.
+  std::string light_classifier;
+  LightClassifierOptions classifier;
   int environment_width = 128;          // equirectangular, height = width/2
   int fit_width = 160;                  // basis renders' resolution
   int fit_samples_per_pixel = 8;
