@@ -2,6 +2,8 @@
 
 #include <ceres/ceres.h>
 
+#include <Eigen/Dense>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -23,6 +25,8 @@ constexpr double kMinRenderedValue = 1e-6;
 constexpr double kFunctionTolerance = 1e-9;
 constexpr double kGradientTolerance = 1e-12;
 constexpr double kParameterTolerance = 1e-8;
+// Coordinate-descent sweeps of the linear least-squares start.
+constexpr int kInitialSweeps = 50;
 // The response's search ends when its bracket is this narrow.
 constexpr double kGammaTolerance = 1e-3;
 
@@ -153,6 +157,28 @@ IntensityFitResult fit_intensities(const IntensityFitProblem& p, const Intensity
   }
   for (int k = 0; k < sources; ++k)
     if (!held[k]) w[k] = std::clamp(1.0 / free_count, lo[k], hi[k]);
+  // Start from the bounded least-squares weights in the linear domain (the
+  // photo linearised with gamma0): cheap, and the soft-L1 solves converge
+  // from there in a fraction of the iterations equal shares took.
+  {
+    std::vector<double> y(pixels);
+    for (size_t i = 0; i < pixels; ++i) y[i] = std::pow(target[i], 1.0 / o.gamma0);
+    Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(sources, sources);
+    Eigen::VectorXd rhs = Eigen::VectorXd::Zero(sources);
+    for (size_t i = 0; i < pixels; ++i) {
+      const Eigen::Map<const Eigen::VectorXd> r(&rows[i * sources], sources);
+      gram.noalias() += r * r.transpose();
+      rhs.noalias() += r * y[i];
+    }
+    for (int sweep = 0; sweep < kInitialSweeps; ++sweep)
+      for (int k = 0; k < sources; ++k) {
+        if (held[k] || !(gram(k, k) > 0)) continue;
+        const double rest = rhs[k] - gram.row(k).dot(Eigen::Map<const Eigen::VectorXd>(w.data(), sources)) + gram(k, k) * w[k];
+        w[k] = std::clamp(rest / gram(k, k), lo[k], hi[k]);
+      }
+    for (double& v : w)
+      if (!std::isfinite(v)) v = 0.0;
+  }
   const std::vector<double> w_start = w;
   const double a = std::sqrt(std::max(o.smooth_abs_epsilon, 1e-300));
 
