@@ -1,9 +1,11 @@
 #include "bench_common.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <stdexcept>
 
 namespace propcam::firmware {
@@ -42,6 +44,25 @@ void run_gnuplot(const std::string& dir, const std::string& script_name, const s
   // gnuplot's warnings (e.g. a flat range on tiny benches) go to a log, not the user's terminal.
   const std::string cmd = "gnuplot '" + script_path.string() + "' 2>'" + (fs::path(dir) / "gnuplot.log").string() + "'";
   if (std::system(cmd.c_str()) != 0) throw std::runtime_error("gnuplot failed on " + script_path.string());
+}
+
+void parse_bench_size(const std::string& text, int min_side, int& width, int& height) {
+  char x = 0;
+  std::istringstream size(text);
+  if (!(size >> width >> x >> height) || x != 'x' || width < min_side || height < min_side)
+    throw std::invalid_argument("--size expects WxH of at least " + std::to_string(min_side) + "x" + std::to_string(min_side));
+}
+
+std::vector<std::string> parse_sweeps(const std::string& text, const std::vector<std::string>& known) {
+  std::vector<std::string> out;
+  std::istringstream sweeps(text);
+  for (std::string s; std::getline(sweeps, s, ',');) {
+    if (s.empty()) continue;
+    if (std::find(known.begin(), known.end(), s) == known.end())
+      throw std::invalid_argument("--sweeps: unknown sweep '" + s + "'");
+    out.push_back(s);
+  }
+  return out;
 }
 
 }  // namespace propcam::firmware

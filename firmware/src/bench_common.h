@@ -4,6 +4,7 @@
 
 #include <opencv2/core.hpp>
 #include <string>
+#include <vector>
 
 namespace propcam::firmware {
 
@@ -18,5 +19,10 @@ cv::Mat changed_pixels(const cv::Mat& a, const cv::Mat& b, double threshold = kC
 // Writes `script` to DIR/SCRIPT_NAME and runs gnuplot on it (its warnings go
 // to DIR/gnuplot.log); creates DIR. Throws when gnuplot is missing or fails.
 void run_gnuplot(const std::string& dir, const std::string& script_name, const std::string& script);
+
+// `--size WxH` with both sides at least `min_side`; throws std::invalid_argument.
+void parse_bench_size(const std::string& text, int min_side, int& width, int& height);
+// `--sweeps a,b,c`: each name must be one of `known`; throws std::invalid_argument.
+std::vector<std::string> parse_sweeps(const std::string& text, const std::vector<std::string>& known);
 
 }  // namespace propcam::firmware

@@ -364,16 +364,8 @@ CLI::App* add_bench_geometry_command(CLI::App& bench, GeometryBenchArgs& a) {
 }
 
 int run_bench_geometry_command(GeometryBenchArgs a) {
-  char x = 0;
-  std::istringstream size(a.size);
-  if (!(size >> a.options.width >> x >> a.options.height) || x != 'x' || a.options.width < 16 || a.options.height < 16)
-    throw std::invalid_argument("--size expects WxH of at least 16x16");
-  std::istringstream sweeps(a.sweeps);
-  for (std::string s; std::getline(sweeps, s, ',');)
-    if (!s.empty()) a.options.sweeps.push_back(s);
-  for (const auto& s : a.options.sweeps)
-    if (s != "default" && s != "camera" && s != "resolution" && s != "iterations" && s != "transfer" && s != "priors")
-      throw std::invalid_argument("--sweeps: unknown sweep '" + s + "'");
+  parse_bench_size(a.size, 16, a.options.width, a.options.height);
+  a.options.sweeps = parse_sweeps(a.sweeps, {"default", "camera", "resolution", "iterations", "transfer", "priors"});
   a.options.quiet = a.json_out;
   const json result = run_geometry_bench(a.options);
   if (!a.options.plot_dir.empty()) plot_geometry_bench(result, a.options.plot_dir);

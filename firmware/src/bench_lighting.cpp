@@ -143,6 +143,17 @@ double composite_error(const Shot& s, const cv::Mat& composite) {
   return rmse_in_mask(a, b, s.region) / std::max(1e-9, mean_luminance(b, s.region));
 }
 
+// The light, its irradiance and the composite of an estimated scene.
+void score_scene(const Shot& s, const inference::SceneModel& est, const render::Mesh& prop, int spp, Errors& e) {
+  const LightAtPoint l = light_at(est.light_rig(), s.probe);
+  e.direction_deg = angle_deg(l.vector, s.truth_light.vector);
+  e.irradiance_rel = s.truth_light.irradiance_up > 0 ? std::abs(l.irradiance_up / s.truth_light.irradiance_up - 1.0)
+                                                     : std::nan("");
+  e.composite_rel = composite_error(s, composite_like_the_cli(s.shot.photo_linear, est, prop, s.placement, spp));
+  e.gamma = est.gamma;
+  e.lights = static_cast<int>(est.lights.size());
+}
+
 Errors evaluate(const Shot& s, const inference::InferenceOptions& o, const render::Mesh& prop, int spp) {
   const inference::SceneModel est = inference::complete_scene(s.shot.photo_linear, s.geometry, o);
   Errors e;
@@ -151,35 +162,22 @@ Errors evaluate(const Shot& s, const inference::InferenceOptions& o, const rende
       e.seconds += r.seconds;
     if (r.stage == "light_intensities") e.rerender = r.error;
   }
-  const LightAtPoint l = light_at(est.light_rig(), s.probe);
-  e.direction_deg = angle_deg(l.vector, s.truth_light.vector);
-  e.irradiance_rel = s.truth_light.irradiance_up > 0 ? std::abs(l.irradiance_up / s.truth_light.irradiance_up - 1.0)
-                                                     : std::nan("");
-  e.composite_rel = composite_error(s, composite_like_the_cli(s.shot.photo_linear, est, prop, s.placement, spp));
-  e.gamma = est.gamma;
-  e.lights = static_cast<int>(est.lights.size());
+  score_scene(s, est, prop, spp, e);
   return e;
 }
 
 // The Khan-style baseline on the same geometry and albedo: the photo wrapped
 // onto a sphere is the only light, at its measured radiance.
 Errors evaluate_baseline(const Shot& s, const render::Mesh& prop, int spp) {
-  inference::InferenceOptions o;
-  inference::SceneModel est = inference::complete_scene(s.shot.photo_linear, s.geometry, o);
+  inference::SceneModel est = inference::complete_scene(s.shot.photo_linear, s.geometry, inference::InferenceOptions{});
   inference::LightSource env;
   env.type = inference::LightSource::Type::Ibl;
   env.environment = inference::environment_from_photo(s.shot.photo_linear, s.geometry.pinhole, kBaselineEnvironmentWidth);
   est.lights = {env};
   est.gamma = 2.2;
   Errors e;
-  const LightAtPoint l = light_at(est.light_rig(), s.probe);
-  e.direction_deg = angle_deg(l.vector, s.truth_light.vector);
-  e.irradiance_rel = s.truth_light.irradiance_up > 0 ? std::abs(l.irradiance_up / s.truth_light.irradiance_up - 1.0)
-                                                     : std::nan("");
-  e.composite_rel = composite_error(s, composite_like_the_cli(s.shot.photo_linear, est, prop, s.placement, spp));
-  e.gamma = est.gamma;
-  e.lights = 1;
   e.rerender = std::nan("");
+  score_scene(s, est, prop, spp, e);
   return e;
 }
 
@@ -386,16 +384,8 @@ CLI::App* add_bench_lighting_command(CLI::App& bench, LightingBenchArgs& a) {
 }
 
 int run_bench_lighting_command(LightingBenchArgs a) {
-  char x = 0;
-  std::istringstream size(a.size);
-  if (!(size >> a.options.width >> x >> a.options.height) || x != 'x' || a.options.width < 16 || a.options.height < 16)
-    throw std::invalid_argument("--size expects WxH of at least 16x16");
-  std::istringstream sweeps(a.sweeps);
-  for (std::string s; std::getline(sweeps, s, ',');)
-    if (!s.empty()) a.options.sweeps.push_back(s);
-  for (const auto& s : a.options.sweeps)
-    if (s != "default" && s != "basis_spp" && s != "basis_width" && s != "fit_pixels" && s != "response")
-      throw std::invalid_argument("--sweeps: unknown sweep '" + s + "'");
+  parse_bench_size(a.size, 16, a.options.width, a.options.height);
+  a.options.sweeps = parse_sweeps(a.sweeps, {"default", "basis_spp", "basis_width", "fit_pixels", "response"});
   a.options.quiet = a.json_out;
   const json result = run_lighting_bench(a.options);
   if (!a.options.plot_dir.empty()) plot_lighting_bench(result, a.options.plot_dir);
