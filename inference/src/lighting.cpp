@@ -436,6 +436,18 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
       oy += others * target;
     }
     gains[c] = oo > kMinBasisEnergy ? std::clamp(oy / oo, kMinChannelGain, kMaxChannelGain) : 1.0;
+  }
+  // The balance may tint the lights only so far: the estimated albedo already
+  // carries the room's colour cast (interreflections), so a strong tint
+  // double-counts it (a warm room fitted blue lights, and a grey prop came
+  // out blue).
+  {
+    const double level = 0.2126 * gains[0] + 0.7152 * gains[1] + 0.0722 * gains[2];
+    const double max_tint = std::max(1.0, options.max_light_tint);
+    if (level > 0)
+      for (int c = 0; c < 3; ++c) gains[c] = level * std::clamp(gains[c] / level, 1.0 / max_tint, max_tint);
+  }
+  for (int c = 0; c < 3; ++c) {
     for (int i = 0; i < k; ++i)
       weights[i][c] = i == fixed ? 1.0 : (active[i] ? chosen.weights[i] * colours[i][c] * gains[c] : 0.0);
     for (const auto& p : used) {

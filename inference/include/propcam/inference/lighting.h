@@ -34,6 +34,7 @@ struct LightingOptions {
   // The intensity and camera-response fit (the paper's priors and weights).
   IntensityFitOptions fit;
   int max_fit_pixels = 512;             // fit pixels, evenly spread over the usable ones
+  double max_light_tint = 4.0;          // per-channel balance of the fitted lights, relative to their luminance
   // Out-of-view source hypotheses the fit chooses among (and prunes): a grid
   // of ceiling panels indoors, sun directions outdoors.
   int ceiling_grid = 3;                 // n x n panels
