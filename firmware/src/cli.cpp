@@ -21,6 +21,7 @@
 #include "compositor.h"
 #include "progress.h"
 #include "propcam/capture/image_file.h"
+#include "propcam/inference/ibl_library.h"
 #include "propcam/inference/infer.h"
 #include "propcam/render/depth_of_field.h"
 #include "propcam/render/panorama.h"
@@ -551,6 +552,16 @@ int run_cli(int argc, char** argv) {
   build_depth_db->add_option("--first-seed", depth_db_spec.first_seed, "First generator seed");
   build_depth_db->add_option("--spp", depth_db_spec.spp, "Samples per pixel of the photos")->check(CLI::PositiveNumber);
 
+  inference::IblLibraryOptions ibl_options;
+  std::string ibl_out;
+  auto* build_ibl = app.add_subcommand(
+      "build-ibl-library", "Build the annotated IBL panorama library (scripts/build_ibl_library.sh)");
+  build_ibl->add_option("-o,--output", ibl_out, "Library folder to write (library.json + EXR panoramas)")->required();
+  build_ibl->add_option("--width", ibl_options.width, "Stored panorama width (height is half)")->check(CLI::Range(8, 4096));
+  build_ibl->add_option("--blender-dir", ibl_options.blender_dir, "blender-data world panoramas (skipped if absent)");
+  build_ibl->add_option("--skies", ibl_options.procedural_skies, "Procedural skies")->check(CLI::NonNegativeNumber);
+  build_ibl->add_option("--rooms", ibl_options.procedural_rooms, "Procedural rooms")->check(CLI::NonNegativeNumber);
+
   RenderArgs render_args;
   auto* render_cmd = app.add_subcommand("render", "Render a SCENE.json (camera, OBJ meshes, lights) to an image");
   render_cmd->add_option("scene", render_args.scene, "Scene file (see render/README.md)")->required();
@@ -633,6 +644,20 @@ int run_cli(int argc, char** argv) {
       const inference::DepthDatabase db = build_depth_database(depth_db_spec);
       db.save(depth_db_out);
       std::fprintf(stderr, "wrote %zu examples to %s\n", db.size(), depth_db_out.c_str());
+      return 0;
+    }
+    if (*build_ibl) {
+      const auto start = std::chrono::steady_clock::now();
+      const inference::IblLibrary library = inference::build_ibl_library(ibl_options);
+      inference::save_ibl_library(library, ibl_out);
+      size_t lights = 0, indoor = 0;
+      for (const auto& e : library.entries) {
+        lights += e.lights.size();
+        indoor += e.kind == inference::SceneKind::Indoor;
+      }
+      std::fprintf(stderr, "wrote %zu panoramas (%zu indoor, %zu outdoor, %zu light regions) to %s in %.2f s\n",
+                   library.entries.size(), indoor, library.entries.size() - indoor, lights, ibl_out.c_str(),
+                   std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
       return 0;
     }
     if (*view) return cmd_view(view_args);
