@@ -17,6 +17,7 @@
 #include "bench_geometry.h"
 #include "bench_lighting.h"
 #include "bench_transfer.h"
+#include "bench_scene_class.h"
 #include "depth_database_builder.h"
 #include "compositor.h"
 #include "progress.h"
@@ -590,6 +591,8 @@ int run_cli(int argc, char** argv) {
   auto* bench_geometry = add_bench_geometry_command(*bench, bench_geometry_args);
   TransferBenchArgs bench_transfer_args;
   auto* bench_transfer = add_bench_transfer_command(*bench, bench_transfer_args);
+  SceneClassBenchArgs bench_scene_class_args;
+  auto* bench_scene_class = add_bench_scene_class_command(*bench, bench_scene_class_args);
   LightingBenchArgs bench_lighting_args;
   auto* bench_lighting = add_bench_lighting_command(*bench, bench_lighting_args);
 
@@ -677,6 +680,7 @@ int run_cli(int argc, char** argv) {
     if (*bench_camera) return run_bench_camera_command(bench_camera_args);
     if (*bench_geometry) return run_bench_geometry_command(bench_geometry_args);
     if (*bench_transfer) return run_bench_transfer_command(bench_transfer_args);
+    if (*bench_scene_class) return run_bench_scene_class_command(bench_scene_class_args);
     if (*bench_lighting) return run_bench_lighting_command(bench_lighting_args);
     if (*bench) {
       if (!parse_pair(bench_size, bench_options.width, bench_options.height, 'x') || bench_options.width < 32 ||
