@@ -18,10 +18,12 @@
 #include "bench_lighting.h"
 #include "light_training.h"
 #include "bench_transfer.h"
+#include "bench_scene_class.h"
 #include "depth_database_builder.h"
 #include "compositor.h"
 #include "progress.h"
 #include "propcam/capture/image_file.h"
+#include "propcam/inference/ibl_library.h"
 #include "propcam/inference/infer.h"
 #include "propcam/render/depth_of_field.h"
 #include "propcam/render/panorama.h"
@@ -554,6 +556,16 @@ int run_cli(int argc, char** argv) {
   build_depth_db->add_option("--first-seed", depth_db_spec.first_seed, "First generator seed");
   build_depth_db->add_option("--spp", depth_db_spec.spp, "Samples per pixel of the photos")->check(CLI::PositiveNumber);
 
+  inference::IblLibraryOptions ibl_options;
+  std::string ibl_out;
+  auto* build_ibl = app.add_subcommand(
+      "build-ibl-library", "Build the annotated IBL panorama library (scripts/build_ibl_library.sh)");
+  build_ibl->add_option("-o,--output", ibl_out, "Library folder to write (library.json + EXR panoramas)")->required();
+  build_ibl->add_option("--width", ibl_options.width, "Stored panorama width (height is half)")->check(CLI::Range(8, 4096));
+  build_ibl->add_option("--blender-dir", ibl_options.blender_dir, "blender-data world panoramas (skipped if absent)");
+  build_ibl->add_option("--skies", ibl_options.procedural_skies, "Procedural skies")->check(CLI::NonNegativeNumber);
+  build_ibl->add_option("--rooms", ibl_options.procedural_rooms, "Procedural rooms")->check(CLI::NonNegativeNumber);
+
   RenderArgs render_args;
   auto* render_cmd = app.add_subcommand("render", "Render a SCENE.json (camera, OBJ meshes, lights) to an image");
   render_cmd->add_option("scene", render_args.scene, "Scene file (see render/README.md)")->required();
@@ -582,6 +594,8 @@ int run_cli(int argc, char** argv) {
   auto* bench_geometry = add_bench_geometry_command(*bench, bench_geometry_args);
   TransferBenchArgs bench_transfer_args;
   auto* bench_transfer = add_bench_transfer_command(*bench, bench_transfer_args);
+  SceneClassBenchArgs bench_scene_class_args;
+  auto* bench_scene_class = add_bench_scene_class_command(*bench, bench_scene_class_args);
   LightingBenchArgs bench_lighting_args;
   auto* bench_lighting = add_bench_lighting_command(*bench, bench_lighting_args);
   LightTrainingArgs bench_lights_args;
@@ -641,6 +655,20 @@ int run_cli(int argc, char** argv) {
       std::fprintf(stderr, "wrote %zu examples to %s\n", db.size(), depth_db_out.c_str());
       return 0;
     }
+    if (*build_ibl) {
+      const auto start = std::chrono::steady_clock::now();
+      const inference::IblLibrary library = inference::build_ibl_library(ibl_options);
+      inference::save_ibl_library(library, ibl_out);
+      size_t lights = 0, indoor = 0;
+      for (const auto& e : library.entries) {
+        lights += e.lights.size();
+        indoor += e.kind == inference::SceneKind::Indoor;
+      }
+      std::fprintf(stderr, "wrote %zu panoramas (%zu indoor, %zu outdoor, %zu light regions) to %s in %.2f s\n",
+                   library.entries.size(), indoor, library.entries.size() - indoor, lights, ibl_out.c_str(),
+                   std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+      return 0;
+    }
     if (*view) return cmd_view(view_args);
     if (*render_cmd) return cmd_render(render_args);
     if (*bench_render) {
@@ -658,6 +686,7 @@ int run_cli(int argc, char** argv) {
     if (*bench_camera) return run_bench_camera_command(bench_camera_args);
     if (*bench_geometry) return run_bench_geometry_command(bench_geometry_args);
     if (*bench_transfer) return run_bench_transfer_command(bench_transfer_args);
+    if (*bench_scene_class) return run_bench_scene_class_command(bench_scene_class_args);
     if (*bench_lighting) return run_bench_lighting_command(bench_lighting_args);
     if (*bench_lights) return run_bench_lights_command(bench_lights_args);
     if (*bench) {
