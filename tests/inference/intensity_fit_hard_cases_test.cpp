@@ -51,6 +51,19 @@ TEST(IntensityFitHardCases, AllBasisRendersBlack) {
   EXPECT_EQ(r.weights.sum(), 0.0);
 }
 
+TEST(IntensityFitHardCases, IdenticalBasisRendersCollinearColumns) {
+  // Three copies of one light: any split fits; the answer must still be
+  // finite, deterministic and carry the whole light.
+  IntensityFitProblem p = ramps(0.5f);
+  p.basis = {p.basis[0], p.basis[0], p.basis[0]};
+  for (int i = 0; i < 100; ++i) p.target[i] = std::pow(0.8f * p.basis[0][i], 1.0f / 2.2f);  // nothing clips
+  const IntensityFitResult a = fit_intensities(p);
+  const IntensityFitResult b = fit_intensities(p);
+  expect_finite(a);
+  EXPECT_EQ(a.weights, b.weights);
+  EXPECT_NEAR(a.weights.sum(), 0.8, 0.04);
+}
+
 TEST(IntensityFitHardCases, NoSourcesOrNoPixelsSayWhy) {
   IntensityFitProblem none;
   const IntensityFitResult r = fit_intensities(none);
