@@ -1,9 +1,14 @@
 #!/usr/bin/env bash
 # Retrains the visible-light classifier committed at
-# inference/data/light_classifier.yml.gz from views of the CC0 HDR panoramas
-# Debian's blender-data installs (deterministic: the same file each run).
+# inference/data/light_classifier.yml.gz from views of CC0 HDR panoramas:
+# the eight Debian's blender-data installs and the eighteen of the npm
+# package @pmndrs/assets (fetched and decoded by scripts/fetch_pmndrs_hdri.sh,
+# never committed). Deterministic: the same file each run.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cmake --preset release >/dev/null
 cmake --build --preset release --target propcam
-build/release/firmware/propcam train-light-classifier -o inference/data/light_classifier.yml.gz "$@"
+extra=$(bash scripts/fetch_pmndrs_hdri.sh)
+panoramas="city,courtyard,forest,interior,night,studio,sunrise,sunset"
+for f in "$extra"/*.exr; do panoramas="$panoramas,$f"; done
+build/release/firmware/propcam train-light-classifier -o inference/data/light_classifier.yml.gz --panoramas "$panoramas" "$@"

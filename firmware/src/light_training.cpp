@@ -18,20 +18,26 @@ using nlohmann::json;
 struct Panorama {
   std::string name;
   std::vector<inference::LabelledView> views;
+  inference::LabelledFeatures features;  // of all its views, computed once
 };
 
 std::vector<Panorama> load_views(const LightTrainingSpec& spec, Progress& progress) {
   std::vector<Panorama> out;
   for (const auto& name : spec.panoramas) {
     progress.stage("light classifier: views of " + name);
-    const cv::Mat latlong = capture::read_image_float(panorama_path(name));
+    // A name is one of blender-data's panoramas; anything with a path or an
+    // extension is a file (e.g. scripts/fetch_pmndrs_hdri.sh's).
+    const bool is_file = name.find('/') != std::string::npos || name.find('.') != std::string::npos;
+    const cv::Mat latlong = capture::read_image_float(is_file ? name : panorama_path(name));
     cv::Mat rgb;
     std::vector<cv::Mat> ch;
     cv::split(latlong, ch);
     if (ch.size() < 3) throw std::runtime_error("panorama '" + name + "' has fewer than three channels");
     cv::merge(std::vector<cv::Mat>{ch[0], ch[1], ch[2]}, rgb);
-    out.push_back({name, inference::panorama_views(rgb, spec.views_per_turn, spec.pitches_deg, spec.horizontal_fov_deg,
-                                                   spec.width, spec.height)});
+    Panorama p{name, inference::panorama_views(rgb, spec.views_per_turn, spec.pitches_deg, spec.horizontal_fov_deg,
+                                               spec.width, spec.height), {}};
+    p.features = inference::labelled_features(p.views, spec.classifier);
+    out.push_back(std::move(p));
   }
   return out;
 }
@@ -42,7 +48,7 @@ inference::LabelledFeatures training_set(const std::vector<const Panorama*>& pan
   std::vector<int> labels;
   int negatives = 0;
   for (const Panorama* p : panoramas) {
-    const inference::LabelledFeatures f = inference::labelled_features(p->views, spec.classifier);
+    const inference::LabelledFeatures& f = p->features;
     for (int r = 0; r < f.features.rows; ++r) {
       const int label = f.labels.at<int>(r);
       if (label == 0 && negatives++ % std::max(1, spec.negative_stride) != 0) continue;
@@ -185,7 +191,8 @@ void add_spec_options(CLI::App* cmd, LightTrainingArgs& a) {
   cmd->add_option("--trees", a.spec.trees, "Trees in the forest")->check(CLI::PositiveNumber);
   cmd->add_option("--negative-stride", a.spec.negative_stride, "Keep every n-th non-source superpixel")
       ->check(CLI::PositiveNumber);
-  cmd->add_option("--panoramas", a.spec.panoramas, "Panorama names (default: all eight of blender-data)")->delimiter(',');
+  cmd->add_option("--panoramas", a.spec.panoramas,
+                  "blender-data panorama names or EXR files (default: blender-data's eight)")->delimiter(',');
 }
 
 }  // namespace

@@ -14,7 +14,7 @@
 namespace propcam::firmware {
 
 struct LightTrainingSpec {
-  std::vector<std::string> panoramas;  // names under blender-data's world folder
+  std::vector<std::string> panoramas;  // names under blender-data's world folder, or EXR file paths
   int views_per_turn = 8;
   std::vector<double> pitches_deg = {0.0, 25.0, 50.0};
   double horizontal_fov_deg = 70.0;
