@@ -225,6 +225,10 @@ std::vector<Config> configs(const std::vector<std::string>& sweeps) {
     for (int n : {256, 4096})
       out.push_back({"fit_pixels", std::to_string(n) + " pixels", static_cast<double>(n),
                      [n](inference::InferenceOptions& o) { o.lighting.max_fit_pixels = n; }});
+  if (wanted("superpixels"))
+    for (int px : {8, 20})
+      out.push_back({"superpixels", std::to_string(px) + " px superpixels", static_cast<double>(px),
+                     [px](inference::InferenceOptions& o) { o.lighting.classifier.superpixel_px = px; }});
   if (wanted("tint"))
     for (double t : {1.0, 1.25, 1.5})
       out.push_back({"tint", "tint <= " + std::to_string(t).substr(0, 4), t,
@@ -381,7 +385,7 @@ CLI::App* add_bench_lighting_command(CLI::App& bench, LightingBenchArgs& a) {
   cmd->add_option("--spp", a.options.spp, "Samples per pixel of photos, references and composites")->check(CLI::PositiveNumber);
   cmd->add_option("--prop", a.options.prop, "Prop inserted for the composite error");
   cmd->add_option("--height", a.options.prop_height_m, "Prop height in metres (0: its natural height)");
-  cmd->add_option("--sweeps", a.sweeps, "Comma-separated subset of basis_spp,basis_width,fit_pixels,tint,response (default: all)");
+  cmd->add_option("--sweeps", a.sweeps, "Comma-separated subset of basis_spp,basis_width,fit_pixels,superpixels,tint,response (default: all)");
   cmd->add_option("--plot", a.options.plot_dir, "Write lighting.png (gnuplot) to this folder");
   cmd->add_flag("--json", a.json_out, "Machine-readable output");
   return cmd;
@@ -389,7 +393,7 @@ CLI::App* add_bench_lighting_command(CLI::App& bench, LightingBenchArgs& a) {
 
 int run_bench_lighting_command(LightingBenchArgs a) {
   parse_bench_size(a.size, 16, a.options.width, a.options.height);
-  a.options.sweeps = parse_sweeps(a.sweeps, {"default", "basis_spp", "basis_width", "fit_pixels", "tint", "response"});
+  a.options.sweeps = parse_sweeps(a.sweeps, {"default", "basis_spp", "basis_width", "fit_pixels", "superpixels", "tint", "response"});
   a.options.quiet = a.json_out;
   const json result = run_lighting_bench(a.options);
   if (!a.options.plot_dir.empty()) plot_lighting_bench(result, a.options.plot_dir);

@@ -191,6 +191,8 @@ void add_spec_options(CLI::App* cmd, LightTrainingArgs& a) {
   cmd->add_option("--trees", a.spec.trees, "Trees in the forest")->check(CLI::PositiveNumber);
   cmd->add_option("--negative-stride", a.spec.negative_stride, "Keep every n-th non-source superpixel")
       ->check(CLI::PositiveNumber);
+  cmd->add_option("--superpixel-px", a.spec.classifier.superpixel_px, "SLIC region size at the 320-px working width")
+      ->check(CLI::Range(4, 64));
   cmd->add_option("--panoramas", a.spec.panoramas,
                   "blender-data panorama names or EXR files (default: blender-data's eight)")->delimiter(',');
 }
