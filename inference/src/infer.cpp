@@ -1,13 +1,12 @@
 #include "propcam/inference/infer.h"
 
-#include "propcam/inference/contact_depth.h"
-
 #include <algorithm>
 #include <cmath>
-#include <map>
 #include <memory>
-#include <mutex>
 #include <stdexcept>
+
+#include "load_once.h"
+#include "propcam/inference/contact_depth.h"
 
 
 namespace propcam::inference {
@@ -39,21 +38,15 @@ render::PinholeCamera pinhole_from(const CameraEstimate& cam, int width, int hei
 // Databases stay loaded once read (1.5 MB); a missing or broken one is
 // reported and the solve goes on without transfer.
 std::shared_ptr<const DepthDatabase> cached_depth_database(const std::string& requested, StageReport& report) {
-  static std::mutex mutex;
-  static std::map<std::string, std::shared_ptr<const DepthDatabase>> cache;
   const std::string path = requested.empty() ? default_depth_database_path() : requested;
   report.stage = "depth_transfer";
-  std::lock_guard lock(mutex);
-  if (auto it = cache.find(path); it != cache.end()) return it->second;
-  try {
-    auto db = std::make_shared<const DepthDatabase>(DepthDatabase::load(path));
-    cache[path] = db;
-    return db;
-  } catch (const std::exception& e) {
+  std::string why;
+  auto db = load_once<DepthDatabase>(path, why);
+  if (!db) {
     report.usable = false;
-    report.why = std::string("no depth transfer: ") + e.what();
-    return nullptr;
+    report.why = "no depth transfer: " + why;
   }
+  return db;
 }
 
 // Transferred depth is made at twice the solve grid: finer would only

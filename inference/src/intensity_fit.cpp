@@ -117,10 +117,13 @@ IntensityFitResult fit_intensities(const IntensityFitProblem& p, const Intensity
   std::vector<double> target(pixels);
   for (size_t i = 0; i < pixels; ++i) target[i] = std::isfinite(p.target[i]) ? std::clamp<double>(p.target[i], 0.0, 1.0) : 0.0;
 
-  // Scale each basis so that alone it matches the photo's mean (linear, under
-  // the prior response): weights O(1), priors independent of exposure.
+  // The photo linearised with the prior response.
+  std::vector<double> target_linear(pixels);
+  for (size_t i = 0; i < pixels; ++i) target_linear[i] = std::pow(target[i], 1.0 / o.gamma0);
+  // Scale each basis so that alone it matches the photo's mean (linear):
+  // weights O(1), priors independent of exposure.
   double target_linear_mean = 0.0;
-  for (double t : target) target_linear_mean += std::pow(t, 1.0 / o.gamma0);
+  for (double t : target_linear) target_linear_mean += t;
   target_linear_mean = std::max(target_linear_mean / pixels, kMinRenderedValue);
   std::vector<double> scale(sources, 0.0);  // normalised basis = scale * basis
   for (int k = 0; k < sources; ++k) {
@@ -158,11 +161,10 @@ IntensityFitResult fit_intensities(const IntensityFitProblem& p, const Intensity
   for (int k = 0; k < sources; ++k)
     if (!held[k]) w[k] = std::clamp(1.0 / free_count, lo[k], hi[k]);
   // Start from the bounded least-squares weights in the linear domain (the
-  // photo linearised with gamma0): cheap, and the soft-L1 solves converge
-  // from there in a fraction of the iterations equal shares took.
+  // photo linearised with gamma0), by coordinate descent from equal shares:
+  // cheap, and a better start for the soft-L1 solves than equal shares.
   {
-    std::vector<double> y(pixels);
-    for (size_t i = 0; i < pixels; ++i) y[i] = std::pow(target[i], 1.0 / o.gamma0);
+    const std::vector<double>& y = target_linear;
     Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(sources, sources);
     Eigen::VectorXd rhs = Eigen::VectorXd::Zero(sources);
     for (size_t i = 0; i < pixels; ++i) {
@@ -291,7 +293,7 @@ IntensityFitResult fit_intensities(const IntensityFitProblem& p, const Intensity
   w = best_w;
   double gamma = best_gamma;
   if (!std::isfinite(best_cost)) {
-    w = w_start;  // nothing usable: the start (equal shares, prior response)
+    w = w_start;  // nothing usable: the least-squares start, prior response
     gamma = o.gamma0;
     out.converged = false;
   }

@@ -5,15 +5,13 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
-#include <map>
-#include <memory>
-#include <mutex>
 #include <numbers>
 #include <opencv2/imgproc.hpp>
 
 #include "propcam/capture/image_file.h"
 #include "propcam/inference/intensity_fit.h"
 #include "propcam/inference/light_classifier.h"
+#include "load_once.h"
 #include "propcam/render/depth_mesh.h"
 #include "propcam/render/path_tracer.h"
 #include "propcam/render/scene.h"
@@ -33,24 +31,6 @@ constexpr double kMinBasisEnergy = 1e-12;
 constexpr double kMinChannelGain = 0.25, kMaxChannelGain = 4.0;
 // No channel of a seen source's colour drops below this share of its luminance.
 constexpr double kMinSourceChannel = 0.05;
-
-// Classifiers stay loaded once read; a missing or broken one is reported
-// (the threshold detector then works alone).
-std::shared_ptr<const LightClassifier> cached_light_classifier(const std::string& requested, std::string& why) {
-  static std::mutex mutex;
-  static std::map<std::string, std::shared_ptr<const LightClassifier>> cache;
-  const std::string path = requested.empty() ? default_light_classifier_path() : requested;
-  std::lock_guard lock(mutex);
-  if (auto it = cache.find(path); it != cache.end()) return it->second;
-  try {
-    auto model = std::make_shared<const LightClassifier>(LightClassifier::load(path));
-    cache[path] = model;
-    return model;
-  } catch (const std::exception& e) {
-    why = e.what();
-    return nullptr;
-  }
-}
 
 double seconds_since(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
@@ -217,7 +197,9 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   StageReport sources;
   if (options.light_classifier != "none") {
     std::string why;
-    if (const auto model = cached_light_classifier(options.light_classifier, why)) {
+    const std::string path = options.light_classifier.empty() ? default_light_classifier_path() : options.light_classifier;
+    // A missing or broken model is reported; the threshold then works alone.
+    if (const auto model = load_once<LightClassifier>(path, why)) {
       bright &= model->source_mask(photo_linear, options.classifier, &sources);
       detector = "classifier";
     } else {
@@ -342,16 +324,6 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
     const cv::Vec3f v = fit_photo.at<cv::Vec3f>(p);
     return c < 3 ? v[c] : 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2];
   };
-  auto normal_equations = [&](int c, Eigen::MatrixXd& A, Eigen::VectorXd& b) {
-    A = Eigen::MatrixXd::Zero(k, k);
-    b = Eigen::VectorXd::Zero(k);
-    Eigen::VectorXd r(k);
-    for (const auto& p : used) {
-      for (int i = 0; i < k; ++i) r[i] = basis_value(i, p, c);
-      A += r * r.transpose();
-      b += r * photo_value(p, c);
-    }
-  };
   std::vector<double> lower(k, 0.0), upper(k, std::numeric_limits<double>::infinity());
   if (sky_calibrated) lower[k - 1] = upper[k - 1] = 1.0;  // the environment is last, and measured
   // Which lights, how bright, and the camera response: the paper's fit
@@ -410,9 +382,11 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   // The photo, linear under the fitted response: what the gains and the
   // error below compare against (and what the compositor relights).
   const double response = 1.0 / chosen.gamma;
-  const auto photo_response = [&](const cv::Point& p, int c) {
-    return std::pow(static_cast<double>(capture::linear_to_srgb(static_cast<float>(photo_value(p, c)))), response);
-  };
+  std::vector<Eigen::Vector3d> photo_response(used.size());  // per used pixel
+  for (size_t n = 0; n < used.size(); ++n)
+    for (int c = 0; c < 3; ++c)
+      photo_response[n][c] =
+          std::pow(static_cast<double>(capture::linear_to_srgb(static_cast<float>(photo_value(used[n], c)))), response);
   std::vector<bool> active(k);
   for (int i = 0; i < k; ++i) active[i] = chosen.weights[i] > 0;
   const int max_iterations_used = chosen.iterations;
@@ -427,11 +401,12 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   Eigen::Vector3d gains = Eigen::Vector3d::Ones();
   for (int c = 0; c < 3; ++c) {
     double oo = 0, oy = 0;
-    for (const auto& p : used) {
+    for (size_t n = 0; n < used.size(); ++n) {
+      const cv::Point& p = used[n];
       double others = 0;
       for (int i = 0; i < k; ++i)
         if (i != fixed && active[i]) others += chosen.weights[i] * colours[i][c] * basis_value(i, p, c);
-      const double target = photo_response(p, c) - (fixed >= 0 ? basis_value(fixed, p, c) : 0.0);
+      const double target = photo_response[n][c] - (fixed >= 0 ? basis_value(fixed, p, c) : 0.0);
       oo += others * others;
       oy += others * target;
     }
@@ -450,10 +425,10 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   for (int c = 0; c < 3; ++c) {
     for (int i = 0; i < k; ++i)
       weights[i][c] = i == fixed ? 1.0 : (active[i] ? chosen.weights[i] * colours[i][c] * gains[c] : 0.0);
-    for (const auto& p : used) {
+    for (size_t n = 0; n < used.size(); ++n) {
       double predicted = 0;
-      for (int i = 0; i < k; ++i) predicted += weights[i][c] * basis_value(i, p, c);
-      const double observed = photo_response(p, c);
+      for (int i = 0; i < k; ++i) predicted += weights[i][c] * basis_value(i, used[n], c);
+      const double observed = photo_response[n][c];
       residual += (observed - predicted) * (observed - predicted);
       signal += observed * observed;
     }
