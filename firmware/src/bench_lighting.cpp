@@ -158,7 +158,8 @@ Errors evaluate(const Shot& s, const inference::InferenceOptions& o, const rende
   const inference::SceneModel est = inference::complete_scene(s.shot.photo_linear, s.geometry, o);
   Errors e;
   for (const auto& r : est.reports) {
-    if (r.stage == "albedo" || r.stage == "light_sources" || r.stage == "environment" || r.stage == "light_intensities")
+    if (r.stage == "albedo" || r.stage == "light_sources" || r.stage == "ibl_ranking" || r.stage == "environment" ||
+        r.stage == "light_intensities")
       e.seconds += r.seconds;
     if (r.stage == "light_intensities") e.rerender = r.error;
   }
@@ -233,6 +234,14 @@ std::vector<Config> configs(const std::vector<std::string>& sweeps) {
     for (double t : {1.0, 1.25, 1.5})
       out.push_back({"tint", "tint <= " + std::to_string(t).substr(0, 4), t,
                      [t](inference::InferenceOptions& o) { o.lighting.max_light_tint = t; }});
+  if (wanted("ibl")) {
+    // Ranked panoramas whose lights join the candidates (default: 1 indoors, 3 outdoors).
+    for (int k : {0, 1, 3, 5})
+      out.push_back({"ibl", k == 0 ? "no IBL ranking" : std::to_string(k) + " ranked IBLs", static_cast<double>(k),
+                     [k](inference::InferenceOptions& o) { o.lighting.ibl_candidates = k; }});
+    out.push_back({"ibl", "ranked IBLs, no hypotheses", -1,
+                   [](inference::InferenceOptions& o) { o.lighting.keep_hypotheses = false; }});
+  }
   if (wanted("response")) {
     out.push_back({"response", "gamma held at 1/2.2", 0,
                    [](inference::InferenceOptions& o) { o.lighting.fit.fit_gamma = false; }});
@@ -385,7 +394,7 @@ CLI::App* add_bench_lighting_command(CLI::App& bench, LightingBenchArgs& a) {
   cmd->add_option("--spp", a.options.spp, "Samples per pixel of photos, references and composites")->check(CLI::PositiveNumber);
   cmd->add_option("--prop", a.options.prop, "Prop inserted for the composite error");
   cmd->add_option("--height", a.options.prop_height_m, "Prop height in metres (0: its natural height)");
-  cmd->add_option("--sweeps", a.sweeps, "Comma-separated subset of basis_spp,basis_width,fit_pixels,superpixels,tint,response (default: all)");
+  cmd->add_option("--sweeps", a.sweeps, "Comma-separated subset of basis_spp,basis_width,fit_pixels,superpixels,tint,ibl,response (default: all)");
   cmd->add_option("--plot", a.options.plot_dir, "Write lighting.png (gnuplot) to this folder");
   cmd->add_flag("--json", a.json_out, "Machine-readable output");
   return cmd;
@@ -393,7 +402,7 @@ CLI::App* add_bench_lighting_command(CLI::App& bench, LightingBenchArgs& a) {
 
 int run_bench_lighting_command(LightingBenchArgs a) {
   parse_bench_size(a.size, 16, a.options.width, a.options.height);
-  a.options.sweeps = parse_sweeps(a.sweeps, {"default", "basis_spp", "basis_width", "fit_pixels", "superpixels", "tint", "response"});
+  a.options.sweeps = parse_sweeps(a.sweeps, {"default", "basis_spp", "basis_width", "fit_pixels", "superpixels", "tint", "ibl", "response"});
   a.options.quiet = a.json_out;
   const json result = run_lighting_bench(a.options);
   if (!a.options.plot_dir.empty()) plot_lighting_bench(result, a.options.plot_dir);

@@ -19,6 +19,7 @@
 #include "light_training.h"
 #include "bench_transfer.h"
 #include "bench_scene_class.h"
+#include "ibl_training.h"
 #include "depth_database_builder.h"
 #include "compositor.h"
 #include "progress.h"
@@ -548,6 +549,8 @@ int run_cli(int argc, char** argv) {
   std::string depth_db_out;
   LightTrainingArgs train_lights_args;
   auto* train_lights = add_train_light_classifier_command(app, train_lights_args);
+  IblTrainingArgs train_ibl_args;
+  auto* train_ibl = add_train_ibl_ranker_command(app, train_ibl_args);
   auto* build_depth_db = app.add_subcommand(
       "build-depth-db", "Render the depth-transfer database from generator scenes (scripts/build_depth_db.sh)");
   build_depth_db->add_option("-o,--output", depth_db_out, "Database file to write")->required();
@@ -600,6 +603,8 @@ int run_cli(int argc, char** argv) {
   auto* bench_lighting = add_bench_lighting_command(*bench, bench_lighting_args);
   LightTrainingArgs bench_lights_args;
   auto* bench_lights = add_bench_lights_command(*bench, bench_lights_args);
+  IblTrainingArgs bench_ibl_args;
+  auto* bench_ibl = add_bench_ibl_ranking_command(*bench, bench_ibl_args);
 
   RenderBenchOptions render_bench_options;
   bool render_bench_json = false;
@@ -649,6 +654,7 @@ int run_cli(int argc, char** argv) {
     if (*props) return cmd_props(props_json);
     if (*synth) return cmd_synth(synth_args);
     if (*train_lights) return run_train_light_classifier_command(train_lights_args);
+    if (*train_ibl) return run_train_ibl_ranker_command(train_ibl_args);
     if (*build_depth_db) {
       const inference::DepthDatabase db = build_depth_database(depth_db_spec);
       db.save(depth_db_out);
@@ -689,6 +695,7 @@ int run_cli(int argc, char** argv) {
     if (*bench_scene_class) return run_bench_scene_class_command(bench_scene_class_args);
     if (*bench_lighting) return run_bench_lighting_command(bench_lighting_args);
     if (*bench_lights) return run_bench_lights_command(bench_lights_args);
+    if (*bench_ibl) return run_bench_ibl_ranking_command(bench_ibl_args);
     if (*bench) {
       if (!parse_pair(bench_size, bench_options.width, bench_options.height, 'x') || bench_options.width < 32 ||
           bench_options.height < 32)

@@ -60,6 +60,13 @@ Eigen::Vector3d sh_irradiance(const ShRadiance& sh, const Eigen::Vector3d& norma
 }
 
 double ibl_render_distance(const ShRadiance& a, const ShRadiance& b) {
+  return ibl_render_distance(a, Eigen::Matrix3d::Identity(), b, Eigen::Matrix3d::Identity());
+}
+
+double ibl_render_distance(const ShRadiance& a, const Eigen::Matrix3d& rotation_a, const ShRadiance& b,
+                           const Eigen::Matrix3d& rotation_b) {
+  if (!rotation_a.allFinite() || !rotation_b.allFinite())
+    throw std::invalid_argument("IBL distance: rotation is not finite");
   std::vector<Eigen::Vector3d> sa, sb;
   std::vector<double> weight;
   double mean_a = 0, mean_b = 0, total = 0;
@@ -67,8 +74,8 @@ double ibl_render_distance(const ShRadiance& a, const ShRadiance& b) {
     for (int x = 0; x < kSphereCols; ++x) {
       const Eigen::Vector3d n = uv_to_direction((x + 0.5) / kSphereCols, (y + 0.5) / kSphereRows);
       const double w = texel_solid_angle(y, kSphereRows, kSphereCols);
-      sa.push_back(sh_irradiance(a, n) / kPi);
-      sb.push_back(sh_irradiance(b, n) / kPi);
+      sa.push_back(sh_irradiance(a, rotation_a * n) / kPi);
+      sb.push_back(sh_irradiance(b, rotation_b * n) / kPi);
       weight.push_back(w);
       const Eigen::Vector3d lum(0.2126, 0.7152, 0.0722);
       mean_a += w * lum.dot(sa.back());

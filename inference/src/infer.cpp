@@ -193,7 +193,8 @@ SceneModel complete_scene(const cv::Mat& photo_linear, const GeometryEstimate& g
 
   if (options.on_stage) options.on_stage("lighting");
   LightingEstimate lighting = estimate_lighting(photo, scene.depth, scene.albedo, camera, scene.planes, scene.indoor,
-                                                options.lighting, scene.indoor ? nullptr : &g.sky);
+                                                options.lighting, scene.indoor ? nullptr : &g.sky,
+                                                GeometryCues{g.orientation, g.sky.mask});
   scene.lights = std::move(lighting.lights);
   for (auto& r : lighting.reports) scene.reports.push_back(std::move(r));
   scene.gamma = lighting.gamma;  // fitted with the intensities

@@ -74,6 +74,35 @@ LightSource quad_from_points(const std::vector<Vector3d>& points, const Vector3d
   return l;
 }
 
+// Distant lights (suns, sky patches) are quads this far away.
+constexpr double kSunDistanceM = 1000.0;
+constexpr double kSunDiameterRad = 0.5 * std::numbers::pi / 180.0;
+// Ranked panoramas' lamps and windows, by distance class (ibl_library.h).
+constexpr double kCloseLightM = 1.0, kMediumLightM = 2.5, kFarLightM = 5.0;
+constexpr double kMinLampSideM = 0.1, kMaxLampSideM = 2.0;
+// A ranked light kept off the wall or ceiling its ray meets.
+constexpr double kWallStandOffM = 0.05;
+// Ranked lights further below the horizon than this lie on the floor.
+constexpr double kMinRankedLightUp = -0.3;
+
+// A square emitter `side` across, `distance` from `from` along unit `dir`,
+// emitting back toward `from`.
+LightSource facing_quad(const Vector3d& from, const Vector3d& dir, double distance, double side) {
+  const Vector3d centre = from + dir * distance;
+  Vector3d u = dir.cross(Vector3d::UnitY());
+  if (u.norm() < 1e-6) u = Vector3d::UnitX();  // straight up or down
+  u.normalize();
+  const Vector3d v = u.cross(dir);
+  LightSource l;
+  l.type = LightSource::Type::Area;
+  l.edge_u = side * u;
+  l.edge_v = side * v;
+  if (l.edge_u.cross(l.edge_v).dot(dir) > 0) std::swap(l.edge_u, l.edge_v);  // face the scene
+  l.corner = centre - 0.5 * (l.edge_u + l.edge_v);
+  l.position = centre;
+  return l;
+}
+
 Vector3d unit_luminance_colour(const Vector3d& rgb) {
   const double lum = 0.2126 * rgb.x() + 0.7152 * rgb.y() + 0.0722 * rgb.z();
   if (!(lum > 0)) return Vector3d::Ones();
@@ -158,31 +187,60 @@ std::vector<LightSource> out_of_view_candidates(const render::PinholeCamera& cam
       }
   } else {
     // Suns as small far quads (0.5 degree across) facing the scene.
-    constexpr double kSunDistanceM = 1000.0;
-    const double size = kSunDistanceM * 0.5 * std::numbers::pi / 180.0;
     for (int a = 0; a < options.sun_azimuths; ++a)
       for (double elevation_deg : options.sun_elevations_deg) {
         const double az = 2 * std::numbers::pi * a / options.sun_azimuths;
         const double el = elevation_deg * std::numbers::pi / 180.0;
         const Vector3d dir = std::cos(el) * (std::cos(az) * ahead + std::sin(az) * side) + std::sin(el) * Vector3d::UnitY();
-        const Vector3d centre = camera.center_world + dir * kSunDistanceM;
-        Vector3d u = dir.cross(Vector3d::UnitY()).normalized(), v = u.cross(dir);
-        LightSource l;
-        l.type = LightSource::Type::Area;
-        l.edge_u = size * u;
-        l.edge_v = size * v;
-        if (l.edge_u.cross(l.edge_v).dot(dir) > 0) std::swap(l.edge_u, l.edge_v);  // face the scene
-        l.corner = centre - 0.5 * (l.edge_u + l.edge_v);
-        l.position = centre;
-        out.push_back(l);
+        out.push_back(facing_quad(camera.center_world, dir, kSunDistanceM, kSunDistanceM * kSunDiameterRad));
       }
+  }
+  return out;
+}
+
+RankedLights ranked_ibl_candidates(const IblRanker& ranker, const IblViewFeatures& features,
+                                   const render::PinholeCamera& camera, const std::vector<SupportPlane>& planes,
+                                   bool indoor, const LightingOptions& options) {
+  RankedLights out;
+  const int k = options.ibl_candidates < 0 ? (indoor ? 1 : 3) : options.ibl_candidates;
+  if (k == 0) return out;
+  const Eigen::Matrix3d photo_heading = heading_frame(camera.R_world_from_cam);
+  for (const IblMatch& m : ranker.rank(features, indoor ? SceneKind::Indoor : SceneKind::Outdoor, k)) {
+    const IblRankerEntry& entry = ranker.entries[m.entry];
+    const IblRankerView& view = ranker.views[m.view];
+    int added = 0;
+    for (const IblLightRegion& region : entry.lights) {
+      if (added >= options.max_lights_per_ibl) break;
+      const Vector3d dir = panorama_to_world(region.direction, view.heading, photo_heading).normalized();
+      if (!dir.allFinite() || dir.y() < kMinRankedLightUp) continue;
+      if (region.distance == LightDistance::Infinite) {
+        // A disc of the region's solid angle, seen from the scene.
+        const double diameter = std::max(kSunDiameterRad, 2.0 * std::sqrt(region.solid_angle_sr / std::numbers::pi));
+        out.lights.push_back(facing_quad(camera.center_world, dir, kSunDistanceM, kSunDistanceM * diameter));
+      } else {
+        double distance = region.distance == LightDistance::Close ? kCloseLightM
+                          : region.distance == LightDistance::Medium ? kMediumLightM : kFarLightM;
+        // Inside the room: stop short of the first wall or ceiling the ray meets.
+        for (const auto& p : planes) {
+          if (p.name == "floor") continue;
+          const double inside = p.normal.dot(camera.center_world) + p.offset, toward = p.normal.dot(dir);
+          if (inside > 0 && toward < 0) distance = std::min(distance, std::max(kWallStandOffM, -inside / toward - kWallStandOffM));
+        }
+        const double side = std::clamp(distance * std::sqrt(region.solid_angle_sr), kMinLampSideM, kMaxLampSideM);
+        out.lights.push_back(facing_quad(camera.center_world, dir, distance, side));
+      }
+      ++added;
+    }
+    out.matches.push_back({{"panorama", entry.name}, {"score", m.score}, {"view_yaw_deg", view.yaw_deg},
+                           {"view_pitch_deg", view.pitch_deg}, {"lights", added}});
   }
   return out;
 }
 
 LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& depth, const cv::Mat& albedo,
                                    const render::PinholeCamera& camera, const std::vector<SupportPlane>& planes,
-                                   bool indoor, const LightingOptions& options, const SkyEstimate* sky) {
+                                   bool indoor, const LightingOptions& options, const SkyEstimate* sky,
+                                   const GeometryCues& cues) {
   LightingEstimate out;
   // --- Visible sources: bright connected regions, lifted to 3D with depth.
   auto start = Clock::now();
@@ -195,12 +253,14 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   // (a white wall or a lit floor is bright too).
   std::string detector = "threshold";
   StageReport sources;
+  cv::Mat classifier_mask;  // also a feature of the IBL ranking
   if (options.light_classifier != "none") {
     std::string why;
     const std::string path = options.light_classifier.empty() ? default_light_classifier_path() : options.light_classifier;
     // A missing or broken model is reported; the threshold then works alone.
     if (const auto model = load_once<LightClassifier>(path, why)) {
-      bright &= model->source_mask(photo_linear, options.classifier, &sources);
+      classifier_mask = model->source_mask(photo_linear, options.classifier, &sources);
+      bright &= classifier_mask;
       detector = "classifier";
     } else {
       detector = "threshold (" + why + ")";
@@ -257,7 +317,37 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   out.reports.push_back(sources);
 
   const size_t visible_sources = out.lights.size();
-  for (auto& candidate : out_of_view_candidates(camera, planes, indoor, options)) {
+  // --- Out-of-view sources: the ranked library's lights, and hypotheses.
+  start = Clock::now();
+  StageReport ranking;
+  ranking.stage = "ibl_ranking";
+  std::vector<LightSource> unseen;
+  if (options.ibl_ranker == "none" || options.ibl_candidates == 0) {
+    ranking.usable = false;
+    ranking.why = "switched off";
+  } else {
+    std::string why;
+    const std::string path = options.ibl_ranker.empty() ? default_ibl_ranker_path() : options.ibl_ranker;
+    if (const auto ranker = load_once<IblRanker>(path, why)) {
+      IblFeatureInputs query{photo_linear, camera, cues.orientation, cues.sky_mask, classifier_mask};
+      RankedLights ranked = ranked_ibl_candidates(*ranker, ibl_view_features(query), camera, planes, indoor, options);
+      unseen = std::move(ranked.lights);
+      ranking.why = std::to_string(ranked.matches.size()) + " panoramas ranked best, " + std::to_string(unseen.size()) +
+                    " of their lights added";
+      ranking.details["matches"] = ranked.matches;
+    } else {
+      ranking.usable = false;
+      ranking.why = "no ranker (" + why + ")";
+    }
+  }
+  const size_t ranked_candidates = unseen.size();
+  if (options.keep_hypotheses || unseen.empty())
+    for (auto& candidate : out_of_view_candidates(camera, planes, indoor, options)) unseen.push_back(candidate);
+  ranking.seconds = seconds_since(start);
+  ranking.details["ranked_candidates"] = ranked_candidates;
+  ranking.details["hypotheses"] = unseen.size() - ranked_candidates;
+  out.reports.push_back(ranking);
+  for (auto& candidate : unseen) {
     out.lights.push_back(candidate);
     colours.push_back(Vector3d::Ones());  // unseen: white, tinted only by the global balance below
   }
@@ -275,7 +365,7 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   StageReport env;
   env.stage = "environment";
   env.why = sky_calibrated ? "sky colour above the horizon, photo wrapped below (measured: weight 1)"
-                           : "photo wrapped onto a sphere (Khan et al.); IBL matching in a later issue";
+                           : "photo wrapped onto a sphere (Khan et al.)";
   env.seconds = seconds_since(start);
   out.reports.push_back(env);
 

@@ -23,5 +23,11 @@ Eigen::Vector3d sh_irradiance(const ShRadiance& sh, const Eigen::Vector3d& norma
 // does not fix exposure). 0 for identical lighting up to scale; a black map
 // counts as uniform grey lighting's opposite: its normalised sphere is 0.
 double ibl_render_distance(const ShRadiance& a, const ShRadiance& b);
+// The same with each map turned: the sphere's normal n is lit by map a from
+// rotation_a * n and by map b from rotation_b * n (e.g. each map seen from the
+// heading of a view cut from it, ibl_ranking.h). Throws std::invalid_argument
+// for a non-finite rotation.
+double ibl_render_distance(const ShRadiance& a, const Eigen::Matrix3d& rotation_a, const ShRadiance& b,
+                           const Eigen::Matrix3d& rotation_b);
 
 }  // namespace propcam::inference

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "propcam/inference/albedo.h"
+#include "propcam/inference/ibl_ranking.h"
 #include "propcam/inference/intensity_fit.h"
 #include "propcam/inference/light_classifier.h"
 #include "propcam/inference/scene_model.h"
@@ -41,6 +42,16 @@ struct LightingOptions {
   double ceiling_panel_m = 0.6;
   int sun_azimuths = 8;
   double sun_elevations_deg[2] = {25.0, 55.0};
+  // Out-of-view light from the ranked IBL library (ibl_ranking.h): the light
+  // regions of the best-ranked panoramas, turned so that the matched view
+  // looks where the photo looks, join the candidates. `ibl_ranker` empty: the
+  // committed ranker; "none": no ranking. `ibl_candidates` panoramas (< 0:
+  // the paper's 1 indoors, 3 outdoors; 0: none), each with at most
+  // `max_lights_per_ibl` of its brightest regions.
+  std::string ibl_ranker;
+  int ibl_candidates = -1;
+  int max_lights_per_ibl = 3;
+  bool keep_hypotheses = true;  // the grid/sun hypotheses stay candidates beside the ranked lights
   uint64_t seed = 11;
 };
 
@@ -54,9 +65,27 @@ struct LightingEstimate {
   double gamma = 2.2;
 };
 
+// What the geometry stage saw that the IBL ranking's features use (empty: unknown).
+struct GeometryCues {
+  cv::Mat orientation;  // CV_8U SurfaceOrientation labels
+  cv::Mat sky_mask;     // CV_8U, the sky detector's mask (indoors too)
+};
+
 LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& depth, const cv::Mat& albedo,
                                    const render::PinholeCamera& camera, const std::vector<SupportPlane>& planes,
-                                   bool indoor, const LightingOptions& options, const SkyEstimate* sky = nullptr);
+                                   bool indoor, const LightingOptions& options, const SkyEstimate* sky = nullptr,
+                                   const GeometryCues& cues = {});
+
+// Candidate sources from the ranked library's light regions (unit
+// intensity): suns and sky patches as far quads, lamps and windows as quads
+// at their distance class, kept inside the room's planes.
+struct RankedLights {
+  std::vector<LightSource> lights;
+  nlohmann::json matches = nlohmann::json::array();  // per panorama: name, score, matched view, lights added
+};
+RankedLights ranked_ibl_candidates(const IblRanker& ranker, const IblViewFeatures& features,
+                                   const render::PinholeCamera& camera, const std::vector<SupportPlane>& planes,
+                                   bool indoor, const LightingOptions& options);
 
 // Candidate sources outside the frame (unit intensity), for the fit to choose from.
 std::vector<LightSource> out_of_view_candidates(const render::PinholeCamera& camera,

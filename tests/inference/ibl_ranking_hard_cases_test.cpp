@@ -1,0 +1,77 @@
+// Hard cases of the IBL ranking's features: degenerate photos and missing
+// cues give finite, deterministic features (each computed twice).
+#include <gtest/gtest.h>
+
+#include <limits>
+
+#include "propcam/inference/ibl_ranking.h"
+#include "propcam/render/panorama.h"
+
+namespace propcam::inference {
+namespace {
+
+render::PinholeCamera camera_for(const cv::Mat& photo) {
+  render::ViewSpec spec;
+  spec.width = photo.cols;
+  spec.height = photo.rows;
+  return render::view_camera(spec);
+}
+
+void expect_finite_and_deterministic(const IblFeatureInputs& in, const char* what) {
+  const IblViewFeatures a = ibl_view_features(in), b = ibl_view_features(in);
+  const IblSimilarity self = ibl_similarity(a, b);
+  EXPECT_TRUE(self.allFinite()) << what;
+  for (int i = 0; i < kIblSimilarityCount; ++i) {
+    EXPECT_GE(self[i], 0.0) << what;
+    EXPECT_LE(self[i], 1.0) << what;
+  }
+  EXPECT_EQ(a.sp, b.sp) << what;
+  EXPECT_EQ(a.hue, b.hue) << what;
+  EXPECT_EQ(cv::norm(a.gc, b.gc, cv::NORM_INF), 0.0) << what;
+  EXPECT_TRUE(cv::checkRange(a.gc) && cv::checkRange(a.om) && cv::checkRange(a.lc)) << what;
+}
+
+TEST(IblRankingHardCases, BlackSaturatedTinyAndNaNPhotos) {
+  const cv::Mat black(120, 160, CV_32FC3, cv::Scalar::all(0));
+  const cv::Mat saturated(120, 160, CV_32FC3, cv::Scalar::all(50));
+  const cv::Mat tiny(16, 16, CV_32FC3, cv::Scalar(0.2, 0.4, 0.6));
+  cv::Mat nan = saturated.clone() * 0.01;
+  nan.at<cv::Vec3f>(5, 5) = cv::Vec3f(std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity(), -3.f);
+  for (const auto& [photo, what] : {std::pair{black, "black"}, std::pair{saturated, "saturated"}, std::pair{tiny, "16x16"},
+                                    std::pair{nan, "NaN/Inf/negative pixels"}}) {
+    IblFeatureInputs in;
+    in.photo_linear = photo;
+    in.camera = camera_for(photo);
+    expect_finite_and_deterministic(in, what);
+  }
+}
+
+TEST(IblRankingHardCases, BrokenCameraAndMismatchedMaskSizes) {
+  IblFeatureInputs in;
+  in.photo_linear = cv::Mat(90, 200, CV_32FC3, cv::Scalar(0.3, 0.3, 0.3));  // not 4:3
+  in.camera.fx = std::numeric_limits<double>::quiet_NaN();                    // no usable camera
+  in.orientation = cv::Mat(7, 5, CV_8U, cv::Scalar(200));                     // labels out of range, odd size
+  in.sky_mask = cv::Mat(3, 3, CV_8U, cv::Scalar(255));
+  in.light_mask = cv::Mat(1, 1, CV_8U, cv::Scalar(255));
+  expect_finite_and_deterministic(in, "broken camera, odd masks");
+}
+
+TEST(IblRankingHardCases, EmptyOrWrongTypePhotoIsAClearError) {
+  IblFeatureInputs in;
+  EXPECT_THROW(ibl_view_features(in), std::invalid_argument);
+  in.photo_linear = cv::Mat(10, 10, CV_8UC3, cv::Scalar::all(0));
+  EXPECT_THROW(ibl_view_features(in), std::invalid_argument);
+}
+
+TEST(IblRankingHardCases, MismatchedFeaturesAreAClearError) {
+  IblFeatureInputs in;
+  in.photo_linear = cv::Mat(48, 64, CV_32FC3, cv::Scalar::all(0.5));
+  in.camera = camera_for(in.photo_linear);
+  const IblViewFeatures a = ibl_view_features(in);
+  IblViewFeatures b = a;
+  b.hue.pop_back();
+  EXPECT_THROW(ibl_similarity(a, b), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace propcam::inference
