@@ -236,9 +236,13 @@ std::vector<Config> configs(const std::vector<std::string>& sweeps) {
                      [t](inference::InferenceOptions& o) { o.lighting.max_light_tint = t; }});
   if (wanted("ibl")) {
     // Ranked panoramas whose lights join the candidates (default: 1 indoors, 3 outdoors).
-    for (int k : {0, 1, 3, 5})
+    for (int k : {0, 1, 3})
       out.push_back({"ibl", k == 0 ? "no IBL ranking" : std::to_string(k) + " ranked IBLs", static_cast<double>(k),
                      [k](inference::InferenceOptions& o) { o.lighting.ibl_candidates = k; }});
+    out.push_back({"ibl", "paper's: 1 indoors, 3 outdoors", 13, [](inference::InferenceOptions& o) {
+                     o.lighting.ibl_candidates_indoor = 1;
+                     o.lighting.ibl_candidates_outdoor = 3;
+                   }});
     out.push_back({"ibl", "ranked IBLs, no hypotheses", -1,
                    [](inference::InferenceOptions& o) { o.lighting.keep_hypotheses = false; }});
   }

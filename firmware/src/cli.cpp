@@ -568,6 +568,14 @@ int run_cli(int argc, char** argv) {
   build_ibl->add_option("--blender-dir", ibl_options.blender_dir, "blender-data world panoramas (skipped if absent)");
   build_ibl->add_option("--skies", ibl_options.procedural_skies, "Procedural skies")->check(CLI::NonNegativeNumber);
   build_ibl->add_option("--rooms", ibl_options.procedural_rooms, "Procedural rooms")->check(CLI::NonNegativeNumber);
+  build_ibl
+      ->add_option_function<std::vector<std::string>>(
+          "--panoramas",
+          [&ibl_options](const std::vector<std::string>& specs) {
+            for (const auto& s : specs) ibl_options.extra_panoramas.push_back(inference::parse_extra_panorama(s));
+          },
+          "Further EXR panoramas as PATH=indoor|outdoor")
+      ->delimiter(',');
 
   RenderArgs render_args;
   auto* render_cmd = app.add_subcommand("render", "Render a SCENE.json (camera, OBJ meshes, lights) to an image");

@@ -297,6 +297,13 @@ void add_spec_options(CLI::App* cmd, IblTrainingArgs& a) {
   cmd->add_option("--skies", a.spec.library.procedural_skies, "Procedural skies")->check(CLI::NonNegativeNumber);
   cmd->add_option("--rooms", a.spec.library.procedural_rooms, "Procedural rooms")->check(CLI::NonNegativeNumber);
   cmd->add_option("--blender-dir", a.spec.library.blender_dir, "blender-data world panoramas (skipped if absent)");
+  cmd->add_option_function<std::vector<std::string>>(
+         "--panoramas",
+         [&a](const std::vector<std::string>& specs) {
+           for (const auto& s : specs) a.spec.library.extra_panoramas.push_back(inference::parse_extra_panorama(s));
+         },
+         "Further EXR panoramas as PATH=indoor|outdoor (e.g. scripts/fetch_pmndrs_hdri.sh's)")
+      ->delimiter(',');
   cmd->add_option("--pairs", a.spec.pairs_per_query, "Training pairs per query view")->check(CLI::PositiveNumber);
   cmd->add_option("--C", a.spec.svm.C, "SVM-rank's slack weight")->check(CLI::PositiveNumber);
   cmd->add_option("--better-from-nearest", a.spec.better_from_nearest,

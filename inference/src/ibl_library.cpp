@@ -116,8 +116,34 @@ cv::Mat downsample_latlong(const cv::Mat& latlong, int width) {
   if (width < 4) throw std::invalid_argument("panorama width must be at least 4");
   cv::Mat clean = sanitize_latlong(latlong);
   cv::Mat out;
-  cv::resize(clean, out, cv::Size(width, width / 2), 0, 0, cv::INTER_AREA);
+  // Area averaging when shrinking; enlarging a small map interpolates.
+  cv::resize(clean, out, cv::Size(width, width / 2), 0, 0, width < clean.cols ? cv::INTER_AREA : cv::INTER_LINEAR);
   return out;
+}
+
+cv::Mat replace_overflowed_texels(const cv::Mat& latlong) {
+  if (latlong.empty() || latlong.type() != CV_32FC3) throw std::invalid_argument("panorama must be a non-empty CV_32FC3 image");
+  float brightest = 0;
+  for (int i = 0; i < static_cast<int>(latlong.total()); ++i)
+    for (float v : latlong.ptr<cv::Vec3f>()[i].val)
+      if (std::isfinite(v)) brightest = std::max(brightest, v);
+  cv::Mat out = latlong.clone();
+  for (int i = 0; i < static_cast<int>(out.total()); ++i) {
+    cv::Vec3f& t = out.ptr<cv::Vec3f>()[i];
+    if (std::isinf(t[0]) && t[0] > 0 || std::isinf(t[1]) && t[1] > 0 || std::isinf(t[2]) && t[2] > 0)
+      t = cv::Vec3f::all(brightest);
+  }
+  return out;
+}
+
+IblLibraryOptions::ExtraPanorama parse_extra_panorama(const std::string& spec) {
+  const size_t eq = spec.rfind('=');
+  if (eq == std::string::npos || eq == 0)
+    throw std::invalid_argument("panorama '" + spec + "': expected PATH=indoor or PATH=outdoor");
+  const std::string kind = spec.substr(eq + 1);
+  if (kind != "indoor" && kind != "outdoor")
+    throw std::invalid_argument("panorama '" + spec + "': the label must be indoor or outdoor, not '" + kind + "'");
+  return {spec.substr(0, eq), kind == "indoor" ? SceneKind::Indoor : SceneKind::Outdoor};
 }
 
 std::vector<IblLightRegion> find_light_regions(const cv::Mat& latlong_in, SceneKind kind) {
@@ -360,6 +386,11 @@ IblLibrary build_ibl_library(const IblLibraryOptions& options) {
     if (!std::filesystem::exists(file)) continue;
     add(std::string("blender_") + name, "blender-data:" + file.string(), kind,
         capture::load_photo_linear(file.string()));
+  }
+  for (const auto& extra : options.extra_panoramas) {
+    const std::filesystem::path file(extra.path);
+    cv::Mat latlong = capture::load_photo_linear(file.string());
+    add("file_" + file.stem().string(), "file:" + file.string(), extra.kind, replace_overflowed_texels(latlong));
   }
   // Skies: elevations from dawn to noon, clear to hazy, sun all around.
   for (int i = 0; i < options.procedural_skies; ++i) {

@@ -85,6 +85,12 @@ constexpr double kWallStandOffM = 0.05;
 // Ranked lights further below the horizon than this lie on the floor.
 constexpr double kMinRankedLightUp = -0.3;
 
+// How many ranked panoramas lend their lights.
+int ranked_panoramas(const LightingOptions& options, bool indoor) {
+  if (options.ibl_candidates >= 0) return options.ibl_candidates;
+  return indoor ? options.ibl_candidates_indoor : options.ibl_candidates_outdoor;
+}
+
 // A square emitter `side` across, `distance` from `from` along unit `dir`,
 // emitting back toward `from`.
 LightSource facing_quad(const Vector3d& from, const Vector3d& dir, double distance, double side) {
@@ -202,7 +208,7 @@ RankedLights ranked_ibl_candidates(const IblRanker& ranker, const IblViewFeature
                                    const render::PinholeCamera& camera, const std::vector<SupportPlane>& planes,
                                    bool indoor, const LightingOptions& options) {
   RankedLights out;
-  const int k = options.ibl_candidates < 0 ? (indoor ? 1 : 3) : options.ibl_candidates;
+  const int k = ranked_panoramas(options, indoor);
   if (k == 0) return out;
   const Eigen::Matrix3d photo_heading = heading_frame(camera.R_world_from_cam);
   for (const IblMatch& m : ranker.rank(features, indoor ? SceneKind::Indoor : SceneKind::Outdoor, k)) {
@@ -220,14 +226,21 @@ RankedLights ranked_ibl_candidates(const IblRanker& ranker, const IblViewFeature
       } else {
         double distance = region.distance == LightDistance::Close ? kCloseLightM
                           : region.distance == LightDistance::Medium ? kMediumLightM : kFarLightM;
-        // Inside the room: stop short of the first wall or ceiling the ray meets.
+        // Inside the room: stop short of the first wall or ceiling the ray
+        // meets, and lie on it (a ceiling panel shines down, not at the camera).
+        const SupportPlane* on = nullptr;
         for (const auto& p : planes) {
           if (p.name == "floor") continue;
           const double inside = p.normal.dot(camera.center_world) + p.offset, toward = p.normal.dot(dir);
-          if (inside > 0 && toward < 0) distance = std::min(distance, std::max(kWallStandOffM, -inside / toward - kWallStandOffM));
+          if (inside > 0 && toward < 0 && -inside / toward - kWallStandOffM < distance) {
+            distance = std::max(kWallStandOffM, -inside / toward - kWallStandOffM);
+            on = &p;
+          }
         }
         const double side = std::clamp(distance * std::sqrt(region.solid_angle_sr), kMinLampSideM, kMaxLampSideM);
-        out.lights.push_back(facing_quad(camera.center_world, dir, distance, side));
+        const Vector3d centre = camera.center_world + dir * distance;
+        const Vector3d emits = on ? on->normal : Vector3d(-dir);  // a plane's normal faces the camera's side
+        out.lights.push_back(facing_quad(centre + emits, -emits, 1.0, side));
       }
       ++added;
     }
@@ -322,7 +335,7 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   StageReport ranking;
   ranking.stage = "ibl_ranking";
   std::vector<LightSource> unseen;
-  if (options.ibl_ranker == "none" || options.ibl_candidates == 0) {
+  if (options.ibl_ranker == "none" || ranked_panoramas(options, indoor) <= 0) {
     ranking.usable = false;
     ranking.why = "switched off";
   } else {

@@ -82,7 +82,22 @@ struct IblLibraryOptions {
   std::string blender_dir = "/usr/share/blender/datafiles/studiolights/world";  // skipped if absent
   int procedural_skies = 8;
   int procedural_rooms = 8;
+  // Further HDR panoramas (EXR files, e.g. the @pmndrs/assets maps that
+  // scripts/fetch_pmndrs_hdri.sh decodes), each with its label.
+  struct ExtraPanorama {
+    std::string path;
+    SceneKind kind = SceneKind::Indoor;
+  };
+  std::vector<ExtraPanorama> extra_panoramas;
 };
+
+// "PATH=indoor" or "PATH=outdoor"; throws std::invalid_argument otherwise.
+IblLibraryOptions::ExtraPanorama parse_extra_panorama(const std::string& spec);
+
+// Half-float EXRs overflow on the sun: a texel with a +Inf channel becomes
+// white at the map's brightest finite value (sanitize_latlong would make it
+// black, and the sun would vanish). Other texels are untouched.
+cv::Mat replace_overflowed_texels(const cv::Mat& latlong);
 
 // Builds all entries (the Debian ones only when the folder exists).
 IblLibrary build_ibl_library(const IblLibraryOptions& options);

@@ -46,10 +46,11 @@ struct LightingOptions {
   // regions of the best-ranked panoramas, turned so that the matched view
   // looks where the photo looks, join the candidates. `ibl_ranker` empty: the
   // committed ranker; "none": no ranking. `ibl_candidates` panoramas (< 0:
-  // the paper's 1 indoors, 3 outdoors; 0: none), each with at most
+  // by scene class, below; 0: none), each with at most
   // `max_lights_per_ibl` of its brightest regions.
   std::string ibl_ranker;
   int ibl_candidates = -1;
+  int ibl_candidates_indoor = 1, ibl_candidates_outdoor = 3;  // used when ibl_candidates < 0
   int max_lights_per_ibl = 3;
   bool keep_hypotheses = true;  // the grid/sun hypotheses stay candidates beside the ranked lights
   uint64_t seed = 11;
