@@ -1,11 +1,14 @@
 // `propcam bench scene-class`: indoor/outdoor accuracy and time of the k-NN
-// classifier (scene_class_knn.h) beside the sky-based rule inference uses
-// (sky.h classify_indoor), on held-out generator scenes and real photos.
+// classifier (scene_class_knn.h) beside the sky-based rule (sky.h
+// classify_indoor) and their combination, on held-out generator scenes,
+// views of real HDR panoramas (leave-one-panorama-out: a view is never
+// classified against views of its own panorama) and OpenCV's real photos.
 #pragma once
 
 #include <CLI/CLI.hpp>
 #include <cstdint>
 #include <string>
+#include <vector>
 
 namespace propcam::firmware {
 
@@ -14,6 +17,10 @@ struct SceneClassBenchArgs {
   uint64_t first_seed = 5001;  // disjoint from the depth database (1001..) and tests (1..99)
   int width = 320, height = 240, spp = 16;
   int k = 7;
+  std::string refs;  // empty: default_scene_reference_path()
+  std::vector<double> sky_fractions = {0.0, 0.02, 0.05, 0.10};  // combined: sky decides from this share up
+  bool verbose = false;
+  bool unbalanced = false;  // plain majority vote instead of class-balanced votes
 };
 
 CLI::App* add_bench_scene_class_command(CLI::App& bench, SceneClassBenchArgs& args);

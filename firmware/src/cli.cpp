@@ -21,6 +21,7 @@
 #include "bench_scene_class.h"
 #include "ibl_training.h"
 #include "depth_database_builder.h"
+#include "scene_reference_builder.h"
 #include "compositor.h"
 #include "progress.h"
 #include "propcam/capture/image_file.h"
@@ -559,6 +560,9 @@ int run_cli(int argc, char** argv) {
   build_depth_db->add_option("--first-seed", depth_db_spec.first_seed, "First generator seed");
   build_depth_db->add_option("--spp", depth_db_spec.spp, "Samples per pixel of the photos")->check(CLI::PositiveNumber);
 
+  SceneReferenceArgs scene_refs_args;
+  auto* build_scene_refs = add_build_scene_refs_command(app, scene_refs_args);
+
   inference::IblLibraryOptions ibl_options;
   std::string ibl_out;
   auto* build_ibl = app.add_subcommand(
@@ -669,6 +673,7 @@ int run_cli(int argc, char** argv) {
       std::fprintf(stderr, "wrote %zu examples to %s\n", db.size(), depth_db_out.c_str());
       return 0;
     }
+    if (*build_scene_refs) return run_build_scene_refs_command(scene_refs_args);
     if (*build_ibl) {
       const auto start = std::chrono::steady_clock::now();
       const inference::IblLibrary library = inference::build_ibl_library(ibl_options);

@@ -7,6 +7,7 @@
 
 #include "load_once.h"
 #include "propcam/inference/contact_depth.h"
+#include "propcam/inference/scene_class_knn.h"
 
 
 namespace propcam::inference {
@@ -88,7 +89,17 @@ GeometryEstimate infer_geometry(const cv::Mat& photo, const InferenceOptions& op
 
   stage("scene_class");
   StageReport class_report;
-  g.indoor = classify_indoor(photo, g.pinhole, class_report, &g.sky);
+  // The sky rule where it sees sky, else k-NN on rendered and real
+  // references (inference/README.md, "Indoor/outdoor by k-NN"); the rule
+  // alone when the references cannot be read.
+  std::string refs_why;
+  if (const auto refs = load_once<SceneReferenceSet>(default_scene_reference_path(), refs_why)) {
+    g.indoor = classify_indoor_combined(photo, g.pinhole, *refs, class_report, &g.sky);
+  } else {
+    g.indoor = classify_indoor(photo, g.pinhole, class_report, &g.sky);
+    class_report.details["method"] = "sky";
+    class_report.details["knn_unavailable"] = refs_why;
+  }
   g.reports.push_back(class_report);
   if (!g.indoor) g.sky_mask = g.sky.mask;
 
