@@ -406,8 +406,9 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   settings.max_bounces = options.fit_bounces;
   settings.seed = options.seed;
   const int k = rig.count();
-  std::vector<cv::Mat> basis;
-  for (int i = 0; i < k; ++i) basis.push_back(render::render_image(scene, fit_camera, rig.only(i), settings));
+  // One set of paths for all lights (render_background_light_images): about
+  // half the time of a render per light.
+  const std::vector<cv::Mat> basis = render::render_background_light_images(scene, fit_camera, rig, settings);
   const double basis_seconds = seconds_since(start);
   const auto fit_start = Clock::now();
   // Pixels that inform the fit: not the sources themselves, not clipped.

@@ -348,6 +348,44 @@ cv::Mat render_world(const Scene& scene, const PinholeCamera& camera, const Ligh
 
 }  // namespace
 
+std::vector<cv::Mat> render_background_light_images(const Scene& scene, const PinholeCamera& camera,
+                                                    const LightRig& lights, const RenderSettings& settings,
+                                                    RenderStats* stats) {
+  check_inputs(scene, camera, settings);
+  const auto start = std::chrono::steady_clock::now();
+  const int k = lights.count();
+  std::vector<cv::Mat> images;
+  for (int i = 0; i < k; ++i) images.emplace_back(camera.height, camera.width, CV_32FC3, cv::Scalar::all(0));
+  const PathIntegrator integrator(scene, lights, settings.max_bounces, /*layers=*/true);
+  std::atomic<uint64_t> rays{0};
+  for_each_tile(camera.width, camera.height, settings, [&](int x0, int y0, int x1, int y1) {
+    uint64_t tile_rays = 0;
+    std::vector<Eigen::Vector3f> sum(k);
+    for (int y = y0; y < y1; ++y)
+      for (int x = x0; x < x1; ++x) {
+        Rng rng(detail::mix_seed(settings.seed, 0), pixel_stream(camera, x, y));
+        std::fill(sum.begin(), sum.end(), Eigen::Vector3f::Zero());
+        for (int s = 0; s < settings.samples_per_pixel; ++s) {
+          const CameraRay ray = jittered_camera_ray(camera, x, y, rng);
+          const PathResult path = integrator.trace(ray.origin, ray.direction, rng, false);
+          for (int i = 0; i < k; ++i) sum[i] += path.per_light[i];
+          tile_rays += path.rays;
+        }
+        for (int i = 0; i < k; ++i) {
+          const Eigen::Vector3f v = sum[i] / static_cast<float>(settings.samples_per_pixel);
+          images[i].at<cv::Vec3f>(y, x) = cv::Vec3f(v.x(), v.y(), v.z());
+        }
+      }
+    rays += tile_rays;
+  });
+  if (stats) {
+    stats->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    stats->camera_samples = static_cast<uint64_t>(camera.width) * camera.height * settings.samples_per_pixel;
+    stats->rays = rays;
+  }
+  return images;
+}
+
 cv::Mat render_image(const Scene& scene, const PinholeCamera& camera, const LightRig& lights,
                      const RenderSettings& settings, RenderStats* stats) {
   return render_world(scene, camera, lights, settings, stats, true);

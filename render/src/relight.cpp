@@ -59,10 +59,7 @@ SceneLightLayers render_scene_light_layers(const Scene& scene, const PinholeCame
   const int height = std::max(1, static_cast<int>(std::lround(static_cast<double>(width) * camera.height / camera.width)));
   const PinholeCamera small = camera.resized(width, height);
   // The empty scene is the background world: props are not traced.
-  for (int i = 0; i < lights.count(); ++i) {
-    const LightRig one = lights.only(i);
-    out.empty_scene.push_back(render_background_image(scene, small, one, settings));
-  }
+  out.empty_scene = render_background_light_images(scene, small, lights, settings);
   return out;
 }
 

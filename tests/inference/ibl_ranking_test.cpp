@@ -245,6 +245,8 @@ TEST(IblRanking, RankedLightsTurnWithTheMatchAndStayInsideTheRoom) {
   const Vector3d expected = heading_frame(photo.R_world_from_cam) * Vector3d(0, 1, -1).normalized();
   EXPECT_LT((dir - expected).norm(), 1e-6);
   EXPECT_LT(lamp.position.y(), 2.0);  // below the ceiling
+  EXPECT_GT(lamp.position.y(), 1.9);  // and on it, shining down into the room
+  EXPECT_LT(lamp.edge_u.cross(lamp.edge_v).normalized().y(), -0.99);
   EXPECT_EQ(lights.matches.size(), 1u);
   // Outdoors: the sun is a far quad facing the scene.
   const RankedLights sun = ranked_ibl_candidates(r, r.views[2].features, photo, {}, false, options);

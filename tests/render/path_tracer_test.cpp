@@ -396,3 +396,49 @@ TEST(PathTracer, EmissiveMeshesLightTheSceneOnceWithOrWithoutARigLight) {
 
 }  // namespace
 }  // namespace propcam::render
+
+namespace propcam::render {
+namespace {
+
+// One set of shared paths split by light gives what a render of each light
+// alone gives (up to noise), and the layers sum to the full render's mean.
+TEST(PathTracer, LightImagesFromSharedPathsMatchOneRenderPerLight) {
+  Scene scene;
+  Material grey;
+  grey.albedo = {0.6f, 0.5f, 0.4f};
+  scene.add_mesh(floor_quad(3.f, grey), Layer::Background);
+  scene.add_mesh(sphere_mesh({0.2f, 0.3f, 0.f}, 0.3f, grey), Layer::Background);
+  scene.commit();
+  LightRig lights;
+  AreaLight left, right;
+  left.corner = {-1.5f, 1.5f, -0.25f};
+  left.edge_u = {0.5f, 0.f, 0.f};
+  left.edge_v = {0.f, 0.f, 0.5f};  // u x v points down
+  left.radiance = {4.f, 4.f, 4.f};
+  right = left;
+  right.corner = {1.0f, 1.2f, -0.25f};
+  right.radiance = {1.f, 2.f, 3.f};
+  lights.area_lights = {left, right};
+  lights.environment = std::make_shared<EnvironmentLight>(cv::Mat(16, 32, CV_32FC3, cv::Scalar(0.2, 0.3, 0.5)));
+  RenderSettings settings;
+  settings.samples_per_pixel = 64;
+  settings.max_bounces = 2;
+  const PinholeCamera camera = looking_down(24, 2.5);
+  const std::vector<cv::Mat> layers = render_background_light_images(scene, camera, lights, settings);
+  ASSERT_EQ(layers.size(), 3u);
+  cv::Mat sum(camera.height, camera.width, CV_32FC3, cv::Scalar::all(0));
+  for (int i = 0; i < lights.count(); ++i) {
+    const cv::Mat alone = render_background_image(scene, camera, lights.only(i), settings);
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(cv::mean(layers[i])[c] / cv::mean(alone)[c], 1.0, 0.03) << "light " << i << " channel " << c;
+    EXPECT_TRUE(cv::checkRange(layers[i]));
+    sum += layers[i];
+  }
+  const cv::Mat full = render_background_image(scene, camera, lights, settings);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(cv::mean(sum)[c] / cv::mean(full)[c], 1.0, 0.02);
+  // Deterministic.
+  const std::vector<cv::Mat> again = render_background_light_images(scene, camera, lights, settings);
+  for (int i = 0; i < lights.count(); ++i) EXPECT_EQ(cv::norm(layers[i], again[i], cv::NORM_INF), 0.0);
+}
+
+}  // namespace
+}  // namespace propcam::render

@@ -58,6 +58,17 @@ cv::Mat render_image(const Scene& scene, const PinholeCamera& camera, const Ligh
 cv::Mat render_background_image(const Scene& scene, const PinholeCamera& camera, const LightRig& lights,
                                 const RenderSettings& settings, RenderStats* stats = nullptr);
 
+// The empty scene split by light: element i is what rig light i alone
+// renders (LightRig::only order), from one set of paths shared by all lights
+// (next-event estimation toward each at every vertex), so k lights cost far
+// less than k renders. Each light's estimate is the one a render of it alone
+// makes, up to noise, except that the luminance clamp of a sample
+// (kMaxSampleLuminance) applies to the lights' sum. Emissive surfaces outside
+// the rig are dropped.
+std::vector<cv::Mat> render_background_light_images(const Scene& scene, const PinholeCamera& camera,
+                                                    const LightRig& lights, const RenderSettings& settings,
+                                                    RenderStats* stats = nullptr);
+
 PrimaryBuffers render_primary_buffers(const Scene& scene, const PinholeCamera& camera, bool with_props);
 
 // The prop's effect on the photo, from one set of shared samples.
