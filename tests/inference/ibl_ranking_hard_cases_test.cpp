@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "propcam/inference/ibl_ranking.h"
+#include "propcam/inference/lighting.h"
 #include "propcam/render/panorama.h"
 
 namespace propcam::inference {
@@ -71,6 +72,44 @@ TEST(IblRankingHardCases, MismatchedFeaturesAreAClearError) {
   IblViewFeatures b = a;
   b.hue.pop_back();
   EXPECT_THROW(ibl_similarity(a, b), std::invalid_argument);
+}
+
+// Ranked lights straight overhead, straight below, at the horizon, tiny
+// and as large as the sphere: finite quads with area, or skipped (below).
+TEST(IblRankingHardCases, DegenerateRankedLightsGiveFiniteQuads) {
+  IblRanker r;
+  IblRankerEntry e{"odd", SceneKind::Indoor, {}, ShRadiance::Zero()};
+  const std::pair<Eigen::Vector3d, double> odd[] = {{Eigen::Vector3d::UnitY(), 0.05},  {-Eigen::Vector3d::UnitY(), 0.05},
+                                                    {Eigen::Vector3d::UnitX(), 1e-12}, {-Eigen::Vector3d::UnitZ(), 4 * M_PI}};
+  for (const auto& [direction, solid_angle] : odd) {
+    IblLightRegion l;
+    l.direction = direction;
+    l.solid_angle_sr = solid_angle;
+    l.power_share = 0.25;
+    l.distance = LightDistance::Close;
+    e.lights.push_back(l);
+  }
+  IblLightRegion sun = e.lights[0];
+  sun.distance = LightDistance::Infinite;  // a sun at the zenith
+  e.lights.push_back(sun);
+  r.entries.push_back(e);
+  IblRankerView v;
+  IblFeatureInputs in;
+  in.photo_linear = cv::Mat(48, 64, CV_32FC3, cv::Scalar::all(0.4));
+  in.camera = camera_for(in.photo_linear);
+  v.features = ibl_view_features(in);
+  r.views.push_back(v);
+  LightingOptions options;
+  options.max_lights_per_ibl = 5;
+  const render::PinholeCamera photo = camera_for(in.photo_linear);
+  for (int run = 0; run < 2; ++run) {
+    const RankedLights lights = ranked_ibl_candidates(r, v.features, photo, {}, true, options);
+    ASSERT_EQ(lights.lights.size(), 4u);  // the one below the floor is skipped
+    for (const auto& l : lights.lights) {
+      EXPECT_TRUE(l.corner.allFinite() && l.edge_u.allFinite() && l.edge_v.allFinite() && l.position.allFinite());
+      EXPECT_GT(l.edge_u.cross(l.edge_v).norm(), 1e-4);
+    }
+  }
 }
 
 }  // namespace
