@@ -115,16 +115,6 @@ void add(Tallies& t, const Verdicts& v, bool truth) {
   for (size_t i = 0; i < v.indoor.size(); ++i) t[i].add(v.indoor[i] == truth, v.seconds[i]);
 }
 
-render::ViewSpec view_spec(double yaw, double pitch, double fov, int width, int height) {
-  render::ViewSpec spec;
-  spec.yaw_deg = yaw;
-  spec.pitch_deg = pitch;
-  spec.horizontal_fov_deg = fov;
-  spec.width = width;
-  spec.height = height;
-  return spec;
-}
-
 struct TableRow {
   std::string label, panorama;
   std::vector<double> yaws;
@@ -202,7 +192,7 @@ int run_bench_scene_class_command(const SceneClassBenchArgs& args) {
       const auto views = inference::panorama_views(latlong, kLopoViewsPerTurn, {pitch}, kLopoFovDeg, args.width, args.height);
       for (size_t v = 0; v < views.size(); ++v, ++n) {
         const double yaw = 360.0 * static_cast<double>(v) / kLopoViewsPerTurn;
-        const Case c{views[v].photo_linear, render::view_camera(view_spec(yaw, pitch, kLopoFovDeg, args.width, args.height)),
+        const Case c{views[v].photo_linear, render::view_camera(render::view_spec(yaw, pitch, kLopoFovDeg, args.width, args.height)),
                      p.indoor, group};
         const Verdicts verdict = bench.judge(c);
         add(sets[p.indoor ? kPanoIndoor : kPanoOutdoor], verdict, p.indoor);
@@ -222,7 +212,7 @@ int run_bench_scene_class_command(const SceneClassBenchArgs& args) {
     Tallies t;
     for (double pitch : row.pitches)
       for (double yaw : row.yaws) {
-        const RealView view = shoot_panorama_view(path, view_spec(yaw, pitch, kTableFovDeg, kTableWidth, kTableHeight));
+        const RealView view = shoot_panorama_view(path, render::view_spec(yaw, pitch, kTableFovDeg, kTableWidth, kTableHeight));
         const Verdicts verdict = bench.judge({view.photo_linear, view.camera, indoor, refs.find_group(row.panorama)});
         add(t, verdict, indoor);
         add(sets[kTableViews], verdict, indoor);
@@ -235,7 +225,7 @@ int run_bench_scene_class_command(const SceneClassBenchArgs& args) {
     const std::string path = std::string(kOpenCvExamples) + "/" + file;
     if (!std::filesystem::exists(path)) continue;
     const cv::Mat photo = capture::load_photo_linear(path);
-    const Verdicts verdict = bench.judge({photo, render::view_camera(view_spec(0, 0, 60, photo.cols, photo.rows)), false});
+    const Verdicts verdict = bench.judge({photo, render::view_camera(render::view_spec(0, 0, 60, photo.cols, photo.rows)), false});
     Tallies t;
     add(t, verdict, false);
     add(sets[kRealPhotos], verdict, false);

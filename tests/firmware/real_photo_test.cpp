@@ -54,27 +54,17 @@ double up_error_deg(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b) {
   return std::acos(c) * 180.0 / M_PI;
 }
 
-render::ViewSpec view(double yaw, double pitch, double fov, int width, int height) {
-  render::ViewSpec spec;
-  spec.yaw_deg = yaw;
-  spec.pitch_deg = pitch;
-  spec.horizontal_fov_deg = fov;
-  spec.width = width;
-  spec.height = height;
-  return spec;
-}
-
 TEST(RealPhotos, SkyTellsStreetsFromRooms) {
   if (!have(kOpenCvData + "building.jpg") || !have(panorama_path("interior")))
     GTEST_SKIP() << "install opencv-doc and blender-data (scripts/setup.sh does)";
   EXPECT_FALSE(classified_indoor(capture::load_photo_linear(kOpenCvData + "building.jpg"))) << "building.jpg";
   EXPECT_FALSE(classified_indoor(capture::load_photo_linear(kOpenCvData + "home.jpg"))) << "home.jpg";
   for (double yaw = 0; yaw < 360; yaw += 60)
-    EXPECT_TRUE(classified_indoor(shoot_panorama_view(panorama_path("interior"), view(yaw, 5, 60, 480, 360)).photo_linear))
+    EXPECT_TRUE(classified_indoor(shoot_panorama_view(panorama_path("interior"), render::view_spec(yaw, 5, 60, 480, 360)).photo_linear))
         << "hotel room, yaw " << yaw;
   for (const char* name : {"sunrise", "sunset"})
     for (double yaw : {120.0, 240.0})
-      EXPECT_FALSE(classified_indoor(shoot_panorama_view(panorama_path(name), view(yaw, 0, 60, 480, 360)).photo_linear))
+      EXPECT_FALSE(classified_indoor(shoot_panorama_view(panorama_path(name), render::view_spec(yaw, 0, 60, 480, 360)).photo_linear))
           << name << ", yaw " << yaw;
   for (uint32_t seed : {1u, 2u, 3u}) {
     render::SyntheticRoomSpec spec;
@@ -107,7 +97,7 @@ TEST(RealPhotos, StreetCompositeCastsASunShadowOnTheGround) {
 TEST(RealPhotos, RoomCompositeCastsAShadowOnTheFloor) {
   if (!have(panorama_path("interior"))) GTEST_SKIP() << "install blender-data (scripts/setup.sh does)";
   // A hotel room seen from the bed: door, floor, luggage rack.
-  const RealView room = shoot_panorama_view(panorama_path("interior"), view(135, -20, 65, 480, 360));
+  const RealView room = shoot_panorama_view(panorama_path("interior"), render::view_spec(135, -20, 65, 480, 360));
   const inference::SceneModel scene = inference::infer_scene(room.photo_linear);
   EXPECT_TRUE(scene.indoor);
   EXPECT_NEAR(scene.fx / room.camera.fx, 1.0, kMaxFocalError);

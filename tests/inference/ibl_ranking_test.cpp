@@ -17,13 +17,7 @@ namespace {
 using Eigen::Vector3d;
 
 render::PinholeCamera view(double yaw_deg, double pitch_deg = 0, double fov = 60) {
-  render::ViewSpec spec;
-  spec.width = 160;
-  spec.height = 120;
-  spec.yaw_deg = yaw_deg;
-  spec.pitch_deg = pitch_deg;
-  spec.horizontal_fov_deg = fov;
-  return render::view_camera(spec);
+  return render::view_camera(render::view_spec(yaw_deg, pitch_deg, fov, 160, 120));
 }
 
 // A photo with a bright left half, a textured floor band and a coloured wall.

@@ -19,6 +19,10 @@ struct ViewSpec {
   double camera_height_m = 1.5;
 };
 
+inline ViewSpec view_spec(double yaw_deg, double pitch_deg, double horizontal_fov_deg, int width, int height) {
+  return {.width = width, .height = height, .horizontal_fov_deg = horizontal_fov_deg, .yaw_deg = yaw_deg, .pitch_deg = pitch_deg};
+}
+
 // Camera (OpenCV axes, world Y up, centre `camera_height_m` above the origin) for a view.
 PinholeCamera view_camera(const ViewSpec& spec);
 
