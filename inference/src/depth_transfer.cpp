@@ -12,6 +12,7 @@
 #include <stdexcept>
 #include <opencv2/imgproc.hpp>
 
+#include "atomic_file.h"
 #include "propcam/render/depth_mesh.h"
 
 namespace propcam::inference {
@@ -170,12 +171,7 @@ void DepthDatabase::add(DepthExample e) {
 }
 
 void DepthDatabase::save(const std::string& path) const {
-  namespace fs = std::filesystem;
-  const fs::path final_path(path);
-  if (final_path.has_parent_path()) fs::create_directories(final_path.parent_path());
-  const fs::path tmp = final_path.string() + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary);
+  write_binary_atomically(path, [&](std::ostream& out) {
     out.write(kMagic, sizeof kMagic);
     put(out, kVersion);
     put(out, static_cast<uint32_t>(examples_.size()));
@@ -193,10 +189,7 @@ void DepthDatabase::save(const std::string& path) const {
       for (int y = 0; y < s.height; ++y)
         for (int x = 0; x < s.width; ++x) put(out, quantise(e.depth.at<float>(y, x)));
     }
-    out.flush();
-    if (!out) throw std::runtime_error("cannot write '" + tmp.string() + "'");
-  }
-  fs::rename(tmp, final_path);
+  });
 }
 
 DepthDatabase DepthDatabase::load(const std::string& path) {

@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 
+#include "atomic_file.h"
 #include "propcam/capture/image_file.h"
 #include "propcam/inference/orientation_map.h"
 #include "propcam/render/panorama.h"
@@ -391,8 +392,7 @@ cv::Mat write_map(const cv::Mat& map) {
 }  // namespace
 
 void IblRanker::save(const std::string& path) const {
-  const std::string tmp = path + ".tmp" + (path.ends_with(".gz") ? ".yml.gz" : ".yml");
-  {
+  write_atomically(path, [&](const std::string& tmp) {
     cv::FileStorage fs(tmp, cv::FileStorage::WRITE);
     if (!fs.isOpened()) throw std::runtime_error("cannot write " + tmp);
     fs << "format" << kFormat << "version" << kFormatVersion;
@@ -418,8 +418,7 @@ void IblRanker::save(const std::string& path) const {
          << histogram_row(v.features.saturation) << "value" << histogram_row(v.features.value) << "}";
     }
     fs << "]";
-  }
-  std::filesystem::rename(tmp, path);
+  });
 }
 
 IblRanker IblRanker::load(const std::string& path) {

@@ -12,6 +12,7 @@
 #include <stdexcept>
 #include <unistd.h>
 
+#include "atomic_file.h"
 #include "propcam/capture/image_file.h"
 #include "propcam/render/panorama.h"
 
@@ -257,16 +258,7 @@ LightClassifier LightClassifier::load(const std::string& path) {
 
 void LightClassifier::save(const std::string& path) const {
   if (!forest_) throw std::runtime_error("light classifier: nothing to save");
-  const std::filesystem::path final_path(path);
-  if (final_path.has_parent_path()) std::filesystem::create_directories(final_path.parent_path());
-  // Same folder and extension (FileStorage picks the format, .gz compresses).
-  const std::string name = final_path.filename().string();
-  const auto dot = name.find('.');
-  const std::filesystem::path tmp =
-      final_path.parent_path() / (".tmp-" + std::to_string(::getpid()) + "-" + (dot == std::string::npos ? name : name.substr(0, dot)) +
-                                  (dot == std::string::npos ? "" : name.substr(dot)));
-  forest_->save(tmp.string());
-  std::filesystem::rename(tmp, final_path);
+  write_atomically(path, [&](const std::string& tmp) { forest_->save(tmp); });
 }
 
 std::vector<float> LightClassifier::scores(const cv::Mat& features) const {

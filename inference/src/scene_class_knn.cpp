@@ -10,6 +10,8 @@
 #include <numeric>
 #include <stdexcept>
 
+#include "atomic_file.h"
+
 namespace propcam::inference {
 namespace {
 
@@ -73,12 +75,7 @@ void SceneReferenceSet::add(SceneReference r) {
 }
 
 void SceneReferenceSet::save(const std::string& path) const {
-  namespace fs = std::filesystem;
-  const fs::path final_path(path);
-  if (final_path.has_parent_path()) fs::create_directories(final_path.parent_path());
-  const fs::path tmp = final_path.string() + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary);
+  write_binary_atomically(path, [&](std::ostream& out) {
     out.write(kMagic, sizeof kMagic);
     put(out, kVersion);
     put(out, static_cast<uint32_t>(groups_.size()));
@@ -94,10 +91,7 @@ void SceneReferenceSet::save(const std::string& path) const {
       out.write(reinterpret_cast<const char*>(r.descriptor.data()),
                 static_cast<std::streamsize>(sizeof(float) * r.descriptor.size()));
     }
-    out.flush();
-    if (!out) throw std::runtime_error("cannot write '" + tmp.string() + "'");
-  }
-  fs::rename(tmp, final_path);
+  });
 }
 
 SceneReferenceSet SceneReferenceSet::load(const std::string& path) {

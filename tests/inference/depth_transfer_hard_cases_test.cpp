@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "propcam/inference/depth_transfer.h"
+#include "files_in_dir.h"
 
 namespace propcam::inference {
 namespace {
@@ -134,7 +135,7 @@ TEST(DepthTransferHardCases, SaveIsAtomicAndLeavesNoTemporaryFile) {
   std::filesystem::remove_all(dir);
   one_example_db(true).save(dir + "/sub/db.bin");  // creates the folder
   one_example_db(false).save(dir + "/sub/db.bin");  // replaces the file
-  EXPECT_FALSE(std::filesystem::exists(dir + "/sub/db.bin.tmp"));
+  expect_only_files(dir + "/sub", {"db.bin"});
   const DepthDatabase back = DepthDatabase::load(dir + "/sub/db.bin");
   ASSERT_EQ(back.size(), 1u);
   EXPECT_FALSE(back.at(0).indoor);

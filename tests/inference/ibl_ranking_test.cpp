@@ -10,6 +10,7 @@
 #include "propcam/inference/lighting.h"
 #include "propcam/inference/orientation_map.h"
 #include "propcam/render/panorama.h"
+#include "files_in_dir.h"
 
 namespace propcam::inference {
 namespace {
@@ -204,7 +205,7 @@ TEST(IblRanking, SaveLoadRoundTripsAndLoadRejectsBrokenFiles) {
   const auto a = r.rank(q, SceneKind::Outdoor, 1), b = back.rank(q, SceneKind::Outdoor, 1);
   EXPECT_EQ(a[0].view, b[0].view);
   EXPECT_NEAR(a[0].score, b[0].score, 0.05);  // maps are stored as 8-bit fractions
-  EXPECT_FALSE(std::filesystem::exists(path + ".tmp.yml.gz"));
+  expect_only_files(dir.string(), {"ranker.yml.gz"});
 
   const auto expect_error = [&](const std::string& text, const std::string& what) {
     const std::string bad = (dir / "bad.yml").string();

@@ -9,6 +9,7 @@
 #include "propcam/inference/light_classifier.h"
 #include "propcam/inference/scene_class_knn.h"
 #include "propcam/render/panorama.h"
+#include "files_in_dir.h"
 
 namespace propcam::inference {
 namespace {
@@ -53,6 +54,7 @@ TEST(SceneClassKnn, CommittedReferencesLoadWithRendersAndRealViewsOfBothClasses)
 
 TEST(SceneClassKnn, SaveLoadRoundTripIsByteIdentical) {
   const std::string dir = ::testing::TempDir() + "/scene_refs_roundtrip";
+  std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   references().save(dir + "/a.bin");
   SceneReferenceSet::load(dir + "/a.bin").save(dir + "/b.bin");
@@ -60,7 +62,7 @@ TEST(SceneClassKnn, SaveLoadRoundTripIsByteIdentical) {
   const std::string sa((std::istreambuf_iterator<char>(a)), {}), sb((std::istreambuf_iterator<char>(b)), {});
   EXPECT_FALSE(sa.empty());
   EXPECT_EQ(sa, sb);
-  EXPECT_FALSE(std::filesystem::exists(dir + "/a.bin.tmp"));
+  expect_only_files(dir, {"a.bin", "b.bin"});
 }
 
 TEST(SceneClassKnn, ClassificationIsDeterministic) {
