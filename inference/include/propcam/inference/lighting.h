@@ -50,7 +50,11 @@ struct LightingOptions {
   // `max_lights_per_ibl` of its brightest regions.
   std::string ibl_ranker;
   int ibl_candidates = -1;
-  int ibl_candidates_indoor = 1, ibl_candidates_outdoor = 3;  // used when ibl_candidates < 0
+  // Used when ibl_candidates < 0. The paper takes 3 outdoors "to improve the
+  // odds of predicting the correct sun"; on the generator's streets the
+  // extra suns were chosen and were wrong (`propcam bench lighting --sweeps
+  // ibl`: direction 72 against 64 degrees), so outdoors takes 1 as well.
+  int ibl_candidates_indoor = 1, ibl_candidates_outdoor = 1;
   int max_lights_per_ibl = 3;
   bool keep_hypotheses = true;  // the grid/sun hypotheses stay candidates beside the ranked lights
   uint64_t seed = 11;
