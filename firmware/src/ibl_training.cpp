@@ -143,9 +143,11 @@ struct Summary {
   }
 };
 
-}  // namespace
-
-inference::IblFeatureInputs ibl_feature_inputs(const cv::Mat& photo_linear, const inference::InferenceOptions& options) {
+// The photo's features as inference computes them: lines, camera, scene
+// class and orientation map (infer_geometry without the depth solve) and the
+// light classifier's mask.
+inference::IblFeatureInputs ibl_feature_inputs(const cv::Mat& photo_linear, const inference::InferenceOptions& options,
+                                               const inference::LightClassifier* classifier) {
   inference::InferenceOptions o = options;
   o.geometry.solve = false;  // the features need lines, camera, sky and orientation, not dense depth
   const inference::GeometryEstimate g = inference::infer_geometry(photo_linear, o);
@@ -154,12 +156,11 @@ inference::IblFeatureInputs ibl_feature_inputs(const cv::Mat& photo_linear, cons
   in.camera = g.pinhole;
   in.orientation = g.orientation;
   in.sky_mask = g.sky.mask;
-  const std::string path = options.lighting.light_classifier.empty() ? inference::default_light_classifier_path()
-                                                                     : options.lighting.light_classifier;
-  if (options.lighting.light_classifier != "none")
-    in.light_mask = inference::LightClassifier::load(path).source_mask(photo_linear, options.lighting.classifier);
+  if (classifier) in.light_mask = classifier->source_mask(photo_linear, options.lighting.classifier);
   return in;
 }
+
+}  // namespace
 
 IblTrainingSet build_ibl_training_set(const IblTrainingSpec& spec) {
   const auto start = std::chrono::steady_clock::now();
@@ -167,7 +168,9 @@ IblTrainingSet build_ibl_training_set(const IblTrainingSpec& spec) {
   progress.stage("IBL ranker: building the library at width " + std::to_string(spec.library.width));
   const inference::IblLibrary library = inference::build_ibl_library(spec.library);
   IblTrainingSet set;
-  inference::InferenceOptions options;
+  const inference::InferenceOptions options;
+  // The classifier inference uses (estimate_lighting's default).
+  const inference::LightClassifier classifier = inference::LightClassifier::load(inference::default_light_classifier_path());
   for (size_t e = 0; e < library.entries.size(); ++e) {
     const auto& entry = library.entries[e];
     progress.stage("IBL ranker: views of " + entry.name);
@@ -184,7 +187,7 @@ IblTrainingSet build_ibl_training_set(const IblTrainingSpec& spec) {
       rv.pitch_deg = v.pitch_deg;
       rv.fov_deg = v.horizontal_fov_deg;
       rv.heading = inference::heading_frame(render::view_camera(v).R_world_from_cam);
-      rv.features = inference::ibl_view_features(ibl_feature_inputs(exposed_view(entry.latlong, v), options));
+      rv.features = inference::ibl_view_features(ibl_feature_inputs(exposed_view(entry.latlong, v), options, &classifier));
       set.ranker.views.push_back(std::move(rv));
     }
   }

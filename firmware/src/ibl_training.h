@@ -33,11 +33,6 @@ struct IblTrainingSpec {
   bool quiet = false;
 };
 
-// The photo's features as inference computes them: lines, camera, scene
-// class and orientation map (infer_geometry without the depth solve) and the
-// light classifier's mask.
-inference::IblFeatureInputs ibl_feature_inputs(const cv::Mat& photo_linear, const inference::InferenceOptions& options);
-
 // Every library view with its features, the pairwise similarities and the
 // view-frame IBL distances between them.
 struct IblTrainingSet {
