@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <fstream>
 #include <limits>
 
 #include "propcam/inference/intensity_fit.h"
@@ -108,6 +109,46 @@ TEST(LightingHardCases, GammaDrivenToItsBound) {
   const IntensityFitResult r = fit_intensities(p, o);
   EXPECT_NEAR(r.gamma, o.min_gamma, 1e-3);
   EXPECT_TRUE(r.weights.allFinite());
+}
+
+}  // namespace
+}  // namespace propcam::inference
+
+namespace propcam::inference {
+namespace {
+
+const StageReport* report(const LightingEstimate& e, const std::string& stage) {
+  for (const auto& r : e.reports)
+    if (r.stage == stage) return &r;
+  return nullptr;
+}
+
+// The committed ranker adds its panorama's lights; a missing or corrupt one
+// is reported and the hypotheses alone stay (each run twice).
+TEST(LightingHardCases, MissingOrCorruptIblRankerFallsBackToTheHypotheses) {
+  cv::Mat photo(48, 64, CV_32FC3, cv::Scalar(0.3, 0.25, 0.2));
+  const LightingEstimate with = run(photo);
+  const StageReport* ranked = report(with, "ibl_ranking");
+  ASSERT_NE(ranked, nullptr);
+  EXPECT_TRUE(ranked->usable) << ranked->why;
+  EXPECT_GE(ranked->details["ranked_candidates"].get<int>(), 1);
+  const std::string corrupt = ::testing::TempDir() + "/corrupt_ranker.yml";
+  std::ofstream(corrupt) << "%YAML:1.0\nformat: propcam-ibl-ranker\nversion: 1\nweights: [1, 2, 3]\n";
+  for (const std::string path : {std::string("/nonexistent/ranker.yml.gz"), corrupt}) {
+    LightingOptions o = fast();
+    o.ibl_ranker = path;
+    const Stage s;
+    const LightingEstimate a = estimate_lighting(photo, s.depth, s.albedo, s.camera, s.planes, true, o);
+    const LightingEstimate b = estimate_lighting(photo, s.depth, s.albedo, s.camera, s.planes, true, o);
+    expect_same(a, b);
+    expect_finite(a);
+    const StageReport* r = report(a, "ibl_ranking");
+    ASSERT_NE(r, nullptr);
+    EXPECT_FALSE(r->usable);
+    EXPECT_NE(r->why.find(path), std::string::npos) << r->why;
+    EXPECT_EQ(r->details["ranked_candidates"].get<int>(), 0);
+    EXPECT_GT(r->details["hypotheses"].get<int>(), 0);
+  }
 }
 
 }  // namespace
