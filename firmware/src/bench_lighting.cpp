@@ -246,6 +246,10 @@ std::vector<Config> configs(const std::vector<std::string>& sweeps) {
     out.push_back({"ibl", "ranked IBLs, no hypotheses", -1,
                    [](inference::InferenceOptions& o) { o.lighting.keep_hypotheses = false; }});
   }
+  if (wanted("sky"))
+    for (double w : {0.5, 0.25})
+      out.push_back({"sky", "sky weight >= " + std::to_string(w).substr(0, 4), w,
+                     [w](inference::InferenceOptions& o) { o.lighting.min_sky_weight = w; }});
   if (wanted("response")) {
     out.push_back({"response", "gamma held at 1/2.2", 0,
                    [](inference::InferenceOptions& o) { o.lighting.fit.fit_gamma = false; }});
@@ -398,7 +402,7 @@ CLI::App* add_bench_lighting_command(CLI::App& bench, LightingBenchArgs& a) {
   cmd->add_option("--spp", a.options.spp, "Samples per pixel of photos, references and composites")->check(CLI::PositiveNumber);
   cmd->add_option("--prop", a.options.prop, "Prop inserted for the composite error");
   cmd->add_option("--height", a.options.prop_height_m, "Prop height in metres (0: its natural height)");
-  cmd->add_option("--sweeps", a.sweeps, "Comma-separated subset of basis_spp,basis_width,fit_pixels,superpixels,tint,ibl,response (default: all)");
+  cmd->add_option("--sweeps", a.sweeps, "Comma-separated subset of basis_spp,basis_width,fit_pixels,superpixels,tint,ibl,sky,response (default: all)");
   cmd->add_option("--plot", a.options.plot_dir, "Write lighting.png (gnuplot) to this folder");
   cmd->add_flag("--json", a.json_out, "Machine-readable output");
   return cmd;
@@ -406,7 +410,7 @@ CLI::App* add_bench_lighting_command(CLI::App& bench, LightingBenchArgs& a) {
 
 int run_bench_lighting_command(LightingBenchArgs a) {
   parse_bench_size(a.size, 16, a.options.width, a.options.height);
-  a.options.sweeps = parse_sweeps(a.sweeps, {"default", "basis_spp", "basis_width", "fit_pixels", "superpixels", "tint", "ibl", "response"});
+  a.options.sweeps = parse_sweeps(a.sweeps, {"default", "basis_spp", "basis_width", "fit_pixels", "superpixels", "tint", "ibl", "sky", "response"});
   a.options.quiet = a.json_out;
   const json result = run_lighting_bench(a.options);
   if (!a.options.plot_dir.empty()) plot_lighting_bench(result, a.options.plot_dir);

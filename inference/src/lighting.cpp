@@ -429,7 +429,10 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
     return c < 3 ? v[c] : 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2];
   };
   std::vector<double> lower(k, 0.0), upper(k, std::numeric_limits<double>::infinity());
-  if (sky_calibrated) lower[k - 1] = upper[k - 1] = 1.0;  // the environment is last, and measured
+  // The environment is last; a seen sky is measured (weight 1), or at least
+  // bounds it (options.min_sky_weight < 1: the seen sky is brighter than the
+  // zenith it stands for).
+  if (sky_calibrated) lower[k - 1] = std::clamp(options.min_sky_weight, 0.0, 1.0), upper[k - 1] = 1.0;
   // Which lights, how bright, and the camera response: the paper's fit
   // (intensity_fit.h) on luminance, the photo as the camera encoded it
   // (fitting each channel on its own lets a light turn a colour no lamp has,
@@ -501,6 +504,7 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   // fitted lights against the photo, like a white balance. A measured sky
   // keeps its measured weight.
   const int fixed = sky_calibrated ? k - 1 : -1;
+  const double sky_weight = fixed < 0 ? 0.0 : (options.min_sky_weight >= 1.0 ? 1.0 : chosen.weights[fixed]);
   std::vector<Eigen::Vector3d> weights(k, Eigen::Vector3d::Zero());
   Eigen::Vector3d gains = Eigen::Vector3d::Ones();
   for (int c = 0; c < 3; ++c) {
@@ -510,7 +514,7 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
       double others = 0;
       for (int i = 0; i < k; ++i)
         if (i != fixed && active[i]) others += chosen.weights[i] * colours[i][c] * basis_value(i, p, c);
-      const double target = photo_response[n][c] - (fixed >= 0 ? basis_value(fixed, p, c) : 0.0);
+      const double target = photo_response[n][c] - (fixed >= 0 ? sky_weight * basis_value(fixed, p, c) : 0.0);
       oo += others * others;
       oy += others * target;
     }
@@ -528,7 +532,7 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   }
   for (int c = 0; c < 3; ++c) {
     for (int i = 0; i < k; ++i)
-      weights[i][c] = i == fixed ? 1.0 : (active[i] ? chosen.weights[i] * colours[i][c] * gains[c] : 0.0);
+      weights[i][c] = i == fixed ? sky_weight : (active[i] ? chosen.weights[i] * colours[i][c] * gains[c] : 0.0);
     for (size_t n = 0; n < used.size(); ++n) {
       double predicted = 0;
       for (int i = 0; i < k; ++i) predicted += weights[i][c] * basis_value(i, used[n], c);

@@ -57,6 +57,9 @@ struct LightingOptions {
   int ibl_candidates_indoor = 1, ibl_candidates_outdoor = 1;
   int max_lights_per_ibl = 3;
   bool keep_hypotheses = true;  // the grid/sun hypotheses stay candidates beside the ranked lights
+  // Outdoors the seen sky's radiance lights the upper hemisphere at weight 1
+  // (a measurement); below 1 the fit may dim it down to this weight.
+  double min_sky_weight = 1.0;
   uint64_t seed = 11;
 };
 
