@@ -18,7 +18,11 @@ namespace propcam::firmware {
 
 struct IblTrainingSpec {
   // Built in memory, wide enough that 60-90 degree views at 320 px keep their lines.
-  inference::IblLibraryOptions library{.width = 1024};
+  inference::IblLibraryOptions library = [] {
+    inference::IblLibraryOptions o;
+    o.width = 1024;
+    return o;
+  }();
   // The paper's sampling: N stratified views per panorama, azimuth all
   // around, elevation within +-30 degrees, field of view 60-90 degrees.
   int views_per_entry = 10;

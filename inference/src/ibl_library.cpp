@@ -130,8 +130,8 @@ cv::Mat replace_overflowed_texels(const cv::Mat& latlong) {
   cv::Mat out = latlong.clone();
   for (int i = 0; i < static_cast<int>(out.total()); ++i) {
     cv::Vec3f& t = out.ptr<cv::Vec3f>()[i];
-    if (std::isinf(t[0]) && t[0] > 0 || std::isinf(t[1]) && t[1] > 0 || std::isinf(t[2]) && t[2] > 0)
-      t = cv::Vec3f::all(brightest);
+    const auto overflowed = [](float v) { return std::isinf(v) && v > 0; };
+    if (overflowed(t[0]) || overflowed(t[1]) || overflowed(t[2])) t = cv::Vec3f::all(brightest);
   }
   return out;
 }

@@ -119,7 +119,9 @@ TEST(IblRanking, SvmRankLearnsWhichFeatureOrdersThePairs) {
   EXPECT_TRUE(r.converged);
   EXPECT_LE(r.iterations, SvmRankOptions{}.max_iterations);
   for (int i = 0; i < kIblSimilarityCount; ++i)
-    if (i != 2) EXPECT_GT(r.w[2], 3 * std::abs(r.w[i])) << i;
+    if (i != 2) {
+      EXPECT_GT(r.w[2], 3 * std::abs(r.w[i])) << i;
+    }
   int ordered = 0;
   for (const auto& d : diffs) ordered += r.w.dot(d) > 0;
   EXPECT_GT(ordered, 390);

@@ -119,7 +119,9 @@ TEST(SceneClassKnn, CombinedReportSaysWhichMethodDecided) {
   ASSERT_TRUE(report.details.contains("method"));
   const std::string method = report.details["method"];
   EXPECT_TRUE(method == "sky" || method == "knn") << method;
-  if (method == "knn") EXPECT_TRUE(report.details.contains("knn_indoor_share"));
+  if (method == "knn") {
+    EXPECT_TRUE(report.details.contains("knn_indoor_share"));
+  }
   StageReport again;
   EXPECT_EQ(classify_indoor_combined(grey, render::view_camera(spec), references(), again), indoor);
 }

@@ -20,7 +20,13 @@ struct ViewSpec {
 };
 
 inline ViewSpec view_spec(double yaw_deg, double pitch_deg, double horizontal_fov_deg, int width, int height) {
-  return {.width = width, .height = height, .horizontal_fov_deg = horizontal_fov_deg, .yaw_deg = yaw_deg, .pitch_deg = pitch_deg};
+  ViewSpec spec;
+  spec.width = width;
+  spec.height = height;
+  spec.horizontal_fov_deg = horizontal_fov_deg;
+  spec.yaw_deg = yaw_deg;
+  spec.pitch_deg = pitch_deg;
+  return spec;
 }
 
 // Camera (OpenCV axes, world Y up, centre `camera_height_m` above the origin) for a view.
