@@ -123,7 +123,8 @@ double normalised_dot(const cv::Mat& a, const cv::Mat& b) {
   return std::clamp(sum / std::max(1, cells), 0.0, 1.0);
 }
 
-// The light map as (emitting, not emitting) per cell, so dark-on-dark agrees.
+// The light map as (emitting, not emitting) per cell, so dark-on-dark agrees;
+// built once per view, not per comparison.
 cv::Mat two_channel(const cv::Mat& lc) {
   cv::Mat out(lc.size(), CV_32FC2);
   for (int i = 0; i < static_cast<int>(lc.total()); ++i) {
@@ -211,7 +212,7 @@ IblViewFeatures ibl_view_features(const IblFeatureInputs& in) {
     }
   f.gc = to_grid(gc);
   f.om = to_grid(om);
-  f.lc = to_grid(lc);
+  f.lc = two_channel(to_grid(lc));
   // --- Spatial pyramid of gradient words on the encoded grey image.
   cv::Mat grey;
   cv::transform(encoded, grey, cv::Matx13f(0.2126f, 0.7152f, 0.0722f));
@@ -237,7 +238,7 @@ IblViewFeatures ibl_view_features(const IblFeatureInputs& in) {
 
 IblSimilarity ibl_similarity(const IblViewFeatures& a, const IblViewFeatures& b) {
   IblSimilarity x;
-  x << normalised_dot(a.gc, b.gc), normalised_dot(a.om, b.om), normalised_dot(two_channel(a.lc), two_channel(b.lc)),
+  x << normalised_dot(a.gc, b.gc), normalised_dot(a.om, b.om), normalised_dot(a.lc, b.lc),
       histogram_intersection(a.sp, b.sp), histogram_intersection(a.hue, b.hue),
       histogram_intersection(a.saturation, b.saturation), histogram_intersection(a.value, b.value);
   return x;
@@ -384,6 +385,13 @@ cv::Mat read_map(const cv::FileNode& node, int channels, const std::string& what
   return f.reshape(channels, kIblGridRows);
 }
 
+// The file keeps the light map's first channel; the second is 1 minus it.
+cv::Mat emitting_channel(const cv::Mat& lc) {
+  cv::Mat channel;
+  cv::extractChannel(lc, channel, 0);
+  return channel;
+}
+
 cv::Mat write_map(const cv::Mat& map) {
   cv::Mat flat = map.reshape(1, kIblGridRows), stored;
   flat.convertTo(stored, CV_8U, 255.0);
@@ -414,7 +422,7 @@ void IblRanker::save(const std::string& path) const {
     fs << "]" << "views" << "[";
     for (const auto& v : views) {
       fs << "{" << "entry" << v.entry << "yaw_deg" << v.yaw_deg << "pitch_deg" << v.pitch_deg << "fov_deg" << v.fov_deg
-         << "gc" << write_map(v.features.gc) << "om" << write_map(v.features.om) << "lc" << write_map(v.features.lc)
+         << "gc" << write_map(v.features.gc) << "om" << write_map(v.features.om) << "lc" << write_map(emitting_channel(v.features.lc))
          << "sp" << histogram_row(v.features.sp) << "hue" << histogram_row(v.features.hue) << "saturation"
          << histogram_row(v.features.saturation) << "value" << histogram_row(v.features.value) << "}";
     }
@@ -497,7 +505,7 @@ IblRanker IblRanker::load(const std::string& path) {
       v.heading = heading_frame(render::view_camera(spec).R_world_from_cam);
       v.features.gc = read_map(node["gc"], 4, what + " gc");
       v.features.om = read_map(node["om"], 4, what + " om");
-      v.features.lc = read_map(node["lc"], 1, what + " lc");
+      v.features.lc = two_channel(read_map(node["lc"], 1, what + " lc"));
       v.features.sp = read_row(node["sp"], pyramid_size(), what + " sp");
       v.features.hue = read_row(node["hue"], kHistogramBins, what + " hue");
       v.features.saturation = read_row(node["saturation"], kHistogramBins, what + " saturation");

@@ -99,7 +99,8 @@ TEST(IblRanking, HistogramsAndMapsAreNormalised) {
   }
   // The floor rows (orientation Y, below the horizon) are support.
   EXPECT_GT(f.gc.at<cv::Vec4f>(kIblGridRows - 1, 3)[1], 0.9f);
-  EXPECT_GT(f.lc.at<float>(1, 2), 0.5f);
+  EXPECT_GT(f.lc.at<cv::Vec2f>(1, 2)[0], 0.5f);
+  EXPECT_FLOAT_EQ(f.lc.at<cv::Vec2f>(1, 2)[0] + f.lc.at<cv::Vec2f>(1, 2)[1], 1.f);
 }
 
 TEST(IblRanking, SvmRankLearnsWhichFeatureOrdersThePairs) {

@@ -41,7 +41,7 @@ struct IblFeatureInputs {
 struct IblViewFeatures {
   cv::Mat gc;  // CV_32FC4 fractions: sky, support (horizontal, below the horizon), vertical, overhead
   cv::Mat om;  // CV_32FC4 fractions: unknown, horizontal, frontal (normal along the view), side
-  cv::Mat lc;  // CV_32F fraction of emitting pixels
+  cv::Mat lc;  // CV_32FC2 fractions: emitting pixels, the rest
   std::vector<float> sp;  // spatial pyramid of gradient words, Lazebnik-weighted, sums to 1
   std::vector<float> hue, saturation, value;  // each sums to 1
 };
