@@ -7,6 +7,8 @@ packages=(
   build-essential cmake ninja-build pkg-config git
   # hardware backends named by the design
   libcamera-dev libv4l-dev libgpiod-dev
+  # MJPEG frames (libjpeg-turbo's libjpeg API)
+  libjpeg62-turbo-dev
   # vision, geometry, rendering, image files
   libopencv-dev libopencv-contrib-dev libeigen3-dev libembree-dev libceres-dev
   libopenimageio-dev openimageio-tools
