@@ -12,7 +12,6 @@
 #include <libcamera/control_ids.h>
 #include <libcamera/formats.h>
 #include <libcamera/framebuffer_allocator.h>
-#include <libcamera/logging.h>
 #include <libcamera/property_ids.h>
 #include <libcamera/request.h>
 #include <libcamera/stream.h>
@@ -21,7 +20,6 @@
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
-#include <cstdlib>
 #include <cstring>
 #include <deque>
 #include <map>
@@ -58,23 +56,15 @@ constexpr int kStillSettleFrames = 2;  // frames dropped after the still reconfi
 
 std::string errno_text(int err) { return std::error_code(err, std::generic_category()).message(); }
 
-// libcamera logs INFO lines to stderr by default; keep its warnings and
-// errors unless the user chose levels with LIBCAMERA_LOG_LEVELS.
-void quiet_libcamera_logging() {
-  if (std::getenv("LIBCAMERA_LOG_LEVELS")) return;
-  for (const char* category : {"Camera", "CameraManager", "DeviceEnumerator", "Pipeline", "IPAManager",
-                               "IPAModule", "IPAProxy", "V4L2", "UVC", "RPI", "SimplePipeline"})
-    lc::logSetLevel(category, "WARN");
-}
-
 std::mutex g_manager_mutex;
 std::shared_ptr<lc::CameraManager> g_manager;
 
 // One started CameraManager for the process (libcamera allows only one).
+// Its log levels are libcamera's (LIBCAMERA_LOG_LEVELS): its categories are
+// created lazily, so logSetLevel() before start() would not reach them.
 std::shared_ptr<lc::CameraManager> camera_manager() {
   std::lock_guard lock(g_manager_mutex);
   if (g_manager) return g_manager;
-  quiet_libcamera_logging();
   auto manager = std::make_shared<lc::CameraManager>();
   if (const int ret = manager->start())
     throw std::runtime_error("libcamera: CameraManager::start: " + errno_text(-ret));
