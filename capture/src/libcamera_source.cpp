@@ -530,17 +530,20 @@ CaptureResult LibcameraSource::Impl::next_frame(std::chrono::milliseconds timeou
   if (is_lost()) return lost_result();
   if (!streaming) throw std::logic_error("libcamera " + id + ": next_frame before start");
   const auto deadline = std::chrono::steady_clock::now() + timeout;
+  std::optional<Frame> stale;
   for (;;) {
     std::deque<lc::Request*> ready;
     {
       std::unique_lock lock(mutex);
       completed_cv.wait_until(lock, deadline, [&] { return lost || !completed.empty(); });
       if (lost) return {CaptureStatus::DeviceLost, std::nullopt, lost_message};
+      if (completed.empty() && stale) return {CaptureStatus::Ok, std::move(stale), {}};
       if (completed.empty())
         return {CaptureStatus::Timeout, std::nullopt,
                 "libcamera " + id + ": no frame within " + std::to_string(timeout.count()) + " ms"};
       ready.swap(completed);
     }
+    const bool drained_all = ready.size() >= requests.size();
     lc::Request* newest = ready.back();
     ready.pop_back();
     for (lc::Request* stale : ready)
@@ -555,6 +558,13 @@ CaptureResult LibcameraSource::Impl::next_frame(std::chrono::milliseconds timeou
     if (buffer && buffer->metadata().status == lc::FrameMetadata::FrameSuccess)
       frame = copy_frame(*newest, *buffer);
     if (!requeue(newest)) return lost_result();
+    // Every request done: the camera ran dry while the client was away and
+    // the newest is as old as that. Wait once for a fresh one (the stale
+    // one is the answer if none comes in time).
+    if (frame && drained_all && !stale) {
+      stale = std::move(frame);
+      continue;
+    }
     if (frame) return {CaptureStatus::Ok, std::move(frame), {}};
     // A frame error: wait for the next one within the same deadline.
   }

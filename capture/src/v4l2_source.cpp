@@ -61,7 +61,6 @@ int xioctl(int fd, unsigned long request, void* arg) {
   }
 }
 
-bool is_lost_errno(int err) { return err == ENODEV || err == EIO || err == ENXIO; }
 
 [[noreturn]] void fail(const std::string& path, const char* step, int err) {
   throw std::runtime_error("V4L2 " + path + ": " + step + ": " + errno_text(err));
@@ -136,6 +135,8 @@ Fd open_capture_node(const std::string& path, v4l2_capability& cap) {
       what = "a multiplanar capture node, which PropCam does not support";
     else if (caps & V4L2_CAP_META_CAPTURE)
       what = "a metadata capture node";
+    else if (caps & V4L2_CAP_META_OUTPUT)
+      what = "a metadata output node";
     else if (caps & (V4L2_CAP_VIDEO_OUTPUT | V4L2_CAP_VIDEO_OUTPUT_MPLANE))
       what = "a video output node";
     throw std::runtime_error("V4L2 " + path + ": " + what);
@@ -347,7 +348,7 @@ struct V4l2Source::Impl {
   void release_buffers();
   void mark_lost(const char* step, int err);
   bool requeue(const v4l2_buffer& buffer);
-  std::optional<Frame> dequeue_newest();
+  std::optional<Frame> dequeue_newest(bool& drained_all);
   CaptureResult next_frame(std::chrono::milliseconds timeout);
   CaptureResult lost_result() const { return {CaptureStatus::DeviceLost, std::nullopt, lost_message}; }
 
@@ -514,17 +515,16 @@ void V4l2Source::Impl::mark_lost(const char* step, int err) {
   lost_message = "V4L2 " + path + ": " + step + ": " + errno_text(err);
 }
 
+// A driver that refuses a buffer back has failed (a buffer short, for
+// good): DeviceLost, so the daemon reopens it, whatever the errno.
 bool V4l2Source::Impl::requeue(const v4l2_buffer& buffer) {
   v4l2_buffer b{};
   b.type = buffer.type;
   b.memory = buffer.memory;
   b.index = buffer.index;
   if (const int err = xioctl(fd.get(), VIDIOC_QBUF, &b)) {
-    if (is_lost_errno(err)) {
-      mark_lost("VIDIOC_QBUF", err);
-      return false;
-    }
-    fail(path, "VIDIOC_QBUF", err);
+    mark_lost("VIDIOC_QBUF", err);
+    return false;
   }
   return true;
 }
@@ -532,25 +532,28 @@ bool V4l2Source::Impl::requeue(const v4l2_buffer& buffer) {
 // Dequeues every buffer ready, re-queues all but the newest, copies the
 // newest and re-queues it too. nullopt when none was ready (or it was
 // flagged corrupt, or the device went away: see `lost`).
-std::optional<Frame> V4l2Source::Impl::dequeue_newest() {
+std::optional<Frame> V4l2Source::Impl::dequeue_newest(bool& drained_all) {
   std::optional<v4l2_buffer> newest;
+  std::size_t count = 0;
   for (;;) {
     v4l2_buffer b{};
     b.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
     b.memory = V4L2_MEMORY_MMAP;
     if (const int err = xioctl(fd.get(), VIDIOC_DQBUF, &b)) {
       if (err == EAGAIN || err == EPIPE) break;
-      if (is_lost_errno(err)) {
-        mark_lost("VIDIOC_DQBUF", err);
-        return std::nullopt;
-      }
-      fail(path, "VIDIOC_DQBUF", err);
+      mark_lost("VIDIOC_DQBUF", err);  // ENODEV, EIO: unplugged or failed
+      return std::nullopt;
     }
     if (newest && !requeue(*newest)) return std::nullopt;
     newest = b;
+    ++count;
   }
+  drained_all = count >= buffers.size();
   if (!newest) return std::nullopt;
-  if (newest->index >= buffers.size()) fail(path, "VIDIOC_DQBUF (buffer index out of range)", EINVAL);
+  if (newest->index >= buffers.size()) {
+    mark_lost("VIDIOC_DQBUF (buffer index out of range)", EINVAL);
+    return std::nullopt;
+  }
   if (newest->flags & V4L2_BUF_FLAG_ERROR) {
     requeue(*newest);
     return std::nullopt;
@@ -573,6 +576,7 @@ CaptureResult V4l2Source::Impl::next_frame(std::chrono::milliseconds timeout) {
   if (!streaming) throw std::logic_error("V4L2 " + path + ": next_frame before start");
   using clock = std::chrono::steady_clock;
   const auto deadline = clock::now() + timeout;
+  std::optional<Frame> stale;
   for (;;) {
     const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - clock::now());
     pollfd p{fd.get(), POLLIN, 0};
@@ -582,6 +586,7 @@ CaptureResult V4l2Source::Impl::next_frame(std::chrono::milliseconds timeout) {
       mark_lost("poll", errno);
       return lost_result();
     }
+    if (r == 0 && stale) return {CaptureStatus::Ok, std::move(stale), {}};
     if (r == 0)
       return {CaptureStatus::Timeout, std::nullopt,
               "V4L2 " + path + ": no frame within " + std::to_string(timeout.count()) + " ms"};
@@ -590,8 +595,18 @@ CaptureResult V4l2Source::Impl::next_frame(std::chrono::milliseconds timeout) {
       lost_message = "V4L2 " + path + ": poll reported an error (device unplugged or failed)";
       return lost_result();
     }
-    if (auto frame = dequeue_newest()) return {CaptureStatus::Ok, std::move(frame), {}};
+    bool drained_all = false;
+    auto frame = dequeue_newest(drained_all);
     if (lost) return lost_result();
+    if (!frame) continue;
+    // Every buffer full: the driver ran dry while the client was away and
+    // the newest is as old as that. Wait once for a fresh one (the stale
+    // one is the answer if none comes in time).
+    if (drained_all && !stale) {
+      stale = std::move(frame);
+      continue;
+    }
+    return {CaptureStatus::Ok, std::move(frame), {}};
   }
 }
 
