@@ -193,10 +193,11 @@ class ManifestReader {
     const json& v = field(obj, key, where);
     const std::string name = join(where, key);
     if (!v.is_number_integer()) fail(name, "is not an integer");
+    const std::string bounds = " is outside " + std::to_string(lo) + ".." + std::to_string(hi);
     if (v.is_number_unsigned() && v.get<std::uint64_t>() > static_cast<std::uint64_t>(hi))
-      fail(name, "is larger than " + std::to_string(hi));
+      fail(name, std::to_string(v.get<std::uint64_t>()) + bounds);
     const std::int64_t x = v.get<std::int64_t>();
-    if (x < lo || x > hi) fail(name, std::to_string(x) + " is outside " + std::to_string(lo) + ".." + std::to_string(hi));
+    if (x < lo || x > hi) fail(name, std::to_string(x) + bounds);
     return x;
   }
 
