@@ -134,6 +134,21 @@ bool plain_file_name(const std::string& name) {
   return true;
 }
 
+// For messages: a hostile name may hold NULs or control characters.
+std::string printable(const std::string& s) {
+  std::string out;
+  for (unsigned char c : s) {
+    if (std::isprint(c) && c != '\\') {
+      out += static_cast<char>(c);
+    } else {
+      char hex[8];
+      std::snprintf(hex, sizeof hex, "\\x%02x", c);
+      out += hex;
+    }
+  }
+  return out;
+}
+
 std::string frame_file_name(std::size_t index) {
   char name[32];
   std::snprintf(name, sizeof name, "frame_%06zu.raw", index);
@@ -286,7 +301,7 @@ RecordedFrame read_frame(const ManifestReader& in, const json& j, std::size_t in
   RecordedFrame frame;
   frame.file = in.string(j, "file", where);
   if (!plain_file_name(frame.file))
-    in.fail(where + ".file", "'" + frame.file + "' is not a plain file name inside the recording folder");
+    in.fail(where + ".file", "'" + printable(frame.file) + "' is not a plain file name inside the recording folder");
   frame.bytes_used = static_cast<std::size_t>(
       in.integer(j, "bytes_used", where, 1, static_cast<std::int64_t>(kMaxRecordingBytes)));
   try {
@@ -302,6 +317,10 @@ RecordedFrame read_frame(const ManifestReader& in, const json& j, std::size_t in
 json parse_manifest(const fs::path& path) {
   std::error_code ec;
   if (!fs::is_regular_file(path, ec)) throw std::runtime_error(path.string() + ": missing (not a recording folder?)");
+  // A few hundred bytes per frame: anything near this is not a manifest.
+  constexpr std::uintmax_t kMaxManifestBytes = 64u << 20;
+  if (fs::file_size(path, ec) > kMaxManifestBytes)
+    throw std::runtime_error(path.string() + ": larger than " + std::to_string(kMaxManifestBytes >> 20) + " MB");
   std::ifstream file(path);
   if (!file) throw std::runtime_error(path.string() + ": cannot open");
   try {

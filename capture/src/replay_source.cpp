@@ -27,6 +27,11 @@ ReplaySource::ReplaySource(const std::filesystem::path& dir, ReplayOptions optio
   const std::int64_t first = recorded.front().metadata.timestamp_ns;
   for (const RecordedFrame& f : recorded) offsets_ns_.push_back(f.metadata.timestamp_ns - first);
   const std::int64_t span = offsets_ns_.back();
+  // Keeps the schedule's arithmetic far from overflow (and catches bogus clocks).
+  constexpr std::int64_t kMaxSpanNs = std::int64_t{30} * 24 * 3600 * 1'000'000'000;
+  if (span > kMaxSpanNs)
+    throw std::runtime_error(recording_.dir.string() + ": the recording spans " + std::to_string(span / 1'000'000'000) +
+                             " s, more than 30 days; its timestamps cannot be replayed");
   if (recorded.size() > 1 && span > 0) recorded_fps_ = static_cast<double>(recorded.size() - 1) * 1e9 / span;
   sequences_increase_ = std::adjacent_find(recorded.begin(), recorded.end(), [](const auto& a, const auto& b) {
                           return b.metadata.sequence <= a.metadata.sequence;
@@ -89,8 +94,10 @@ void ReplaySource::start() {
   epoch_ns_ = steady_now_ns();
   const std::int64_t span = offsets_ns_.back();
   const double fps = config_.fps > 0 ? config_.fps : kDefaultFps;
+  // The gap from the last frame back to the first: one mean interval (a
+  // microsecond to an hour, whatever fps a one-frame recording was given).
   const std::int64_t period = recorded_fps_ > 0 ? span / static_cast<std::int64_t>(frames_.size() - 1)
-                                                : static_cast<std::int64_t>(std::llround(1e9 / fps));
+                                                : static_cast<std::int64_t>(std::clamp(1e9 / fps, 1e3, 3.6e12));
   loop_ns_ = span + std::max<std::int64_t>(period, 1);
 }
 
