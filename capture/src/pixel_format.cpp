@@ -269,14 +269,15 @@ bool encode_jpeg(const cv::Mat& rgb, int quality, std::vector<std::uint8_t>& out
 
 // ---------------------------------------------------------------------------
 
-std::string describe(const FrameFormat& f) {
-  std::string s = to_string(f.pixel_format) + " " + std::to_string(f.width) + "x" + std::to_string(f.height);
-  if (f.pixel_format != PixelFormat::MJPEG) s += " (stride " + std::to_string(f.stride) + ")";
-  return s;
-}
-
 int effective_stride(const FrameFormat& f) {
   return f.stride ? f.stride : minimum_stride(f.pixel_format, f.width);
+}
+
+// For messages about a format validate_frame_format accepted.
+std::string describe(const FrameFormat& f) {
+  std::string s = to_string(f.pixel_format) + " " + std::to_string(f.width) + "x" + std::to_string(f.height);
+  if (f.pixel_format != PixelFormat::MJPEG) s += " (stride " + std::to_string(effective_stride(f)) + ")";
+  return s;
 }
 
 // The frame's bytes, checked against its format (throws saying what is wrong).
@@ -340,11 +341,8 @@ void rgb_to_packed422(const cv::Mat& rgb, const FrameFormat& f, int stride, std:
     for (int x = 0; x < rgb.cols; x += 2, s += 6, d += 4) {
       const std::uint8_t u = e.c((e.pb(s) + e.pb(s + 3)) / 2), v = e.c((e.pr(s) + e.pr(s + 3)) / 2);
       const std::uint8_t bytes[4] = {e.y(s), u, e.y(s + 3), v};  // Y0 U Y1 V
-      if (yuyv) {
-        std::memcpy(d, bytes, 4);
-      } else {
-        d[0] = u, d[1] = bytes[0], d[2] = v, d[3] = bytes[2];
-      }
+      const std::uint8_t swapped[4] = {u, bytes[0], v, bytes[2]};  // U Y0 V Y1
+      std::memcpy(d, yuyv ? bytes : swapped, 4);
     }
   }
 }

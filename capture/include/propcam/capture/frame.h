@@ -59,8 +59,9 @@ std::size_t frame_bytes(const FrameFormat& format);
 inline constexpr int kMaxFrameDimension = 16384;
 
 // Throws std::runtime_error saying what is wrong: a width or height outside
-// 1..kMaxFrameDimension, a stride below the minimum (0 is packed), an odd
-// width for YUYV/UYVY/NV12 or an odd height for NV12.
+// 1..kMaxFrameDimension, a stride below the minimum (0 is packed) or above
+// 4 x minimum + 4096 (implausible padding), an odd width for YUYV/UYVY/NV12
+// or an odd height for NV12. MJPEG's stride is not looked at.
 void validate_frame_format(const FrameFormat& format);
 
 struct FrameMetadata {
