@@ -216,23 +216,33 @@ bool decode_jpeg(const std::uint8_t* data, std::size_t size, cv::Mat& out, std::
   return true;
 }
 
-// A destination writing into a buffer sized for the worst case up front, so
-// nothing can throw inside libjpeg; running out is reported as an error.
-struct FixedDestination {
+// A destination writing into a vector that doubles when full. An exception
+// must not cross libjpeg's C frames: a failed allocation becomes a libjpeg
+// error (a longjmp) instead.
+struct VectorDestination {
   jpeg_destination_mgr mgr;  // first, as above
-  std::uint8_t* data;
-  std::size_t capacity;
+  std::vector<std::uint8_t>* out;
 };
 
 void destination_init(j_compress_ptr cinfo) {
-  auto* dest = reinterpret_cast<FixedDestination*>(cinfo->dest);
-  dest->mgr.next_output_byte = dest->data;
-  dest->mgr.free_in_buffer = dest->capacity;
+  auto* dest = reinterpret_cast<VectorDestination*>(cinfo->dest);
+  dest->mgr.next_output_byte = dest->out->data();
+  dest->mgr.free_in_buffer = dest->out->size();
 }
 
 boolean destination_full(j_compress_ptr cinfo) {
-  ERREXIT(cinfo, JERR_BUFFER_SIZE);
-  return FALSE;
+  auto* dest = reinterpret_cast<VectorDestination*>(cinfo->dest);
+  const std::size_t used = dest->out->size();  // libjpeg calls this only when all of it is used
+  bool grown = false;
+  try {
+    dest->out->resize(2 * used);
+    grown = true;
+  } catch (...) {
+  }
+  if (!grown) ERREXIT(cinfo, JERR_OUT_OF_MEMORY);
+  dest->mgr.next_output_byte = dest->out->data() + used;
+  dest->mgr.free_in_buffer = dest->out->size() - used;
+  return TRUE;
 }
 
 void destination_term(j_compress_ptr) {}
@@ -241,8 +251,7 @@ bool encode_jpeg(const cv::Mat& rgb, int quality, std::vector<std::uint8_t>& out
                  std::vector<JSAMPROW>& rows, char* message) {
   jpeg_compress_struct cinfo;
   JpegError err;
-  FixedDestination dest{{nullptr, 0, destination_init, destination_full, destination_term}, out.data(),
-                        out.size()};
+  VectorDestination dest{{nullptr, 0, destination_init, destination_full, destination_term}, &out};
   install(err);
   cinfo.err = &err.mgr;
   if (setjmp(err.jump)) {
@@ -262,7 +271,7 @@ bool encode_jpeg(const cv::Mat& rgb, int quality, std::vector<std::uint8_t>& out
   while (cinfo.next_scanline < cinfo.image_height)
     jpeg_write_scanlines(&cinfo, rows.data() + cinfo.next_scanline, cinfo.image_height - cinfo.next_scanline);
   jpeg_finish_compress(&cinfo);
-  used = dest.capacity - dest.mgr.free_in_buffer;
+  used = out.size() - dest.mgr.free_in_buffer;
   jpeg_destroy_compress(&cinfo);
   return true;
 }
@@ -393,7 +402,8 @@ void rgb_to_rgb24(const cv::Mat& rgb, bool swap, int stride, std::uint8_t* dst) 
 std::vector<std::uint8_t> rgb_to_mjpeg(const cv::Mat& rgb, const FrameFormat& f, int quality) {
   if (quality < 1 || quality > 100)
     throw std::runtime_error("rgb8_to_frame: JPEG quality " + std::to_string(quality) + " outside 1..100");
-  std::vector<std::uint8_t> out(frame_bytes(f));
+  // Half a byte per pixel is typical at high quality; the buffer grows if not.
+  std::vector<std::uint8_t> out(static_cast<std::size_t>(f.width) * f.height / 2 + 16384);
   std::vector<JSAMPROW> rows(static_cast<std::size_t>(rgb.rows));
   for (int r = 0; r < rgb.rows; ++r) rows[r] = const_cast<std::uint8_t*>(rgb.ptr<std::uint8_t>(r));
   std::size_t used = 0;

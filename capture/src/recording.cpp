@@ -345,7 +345,7 @@ Recorder::Recorder(std::filesystem::path dir, std::string camera_id, std::string
   if (fs::exists(dir, ec)) {
     if (!fs::is_directory(dir, ec)) throw std::runtime_error("recording folder " + dir.string() + " is not a folder");
     if (!fs::is_empty(dir, ec)) throw std::runtime_error("recording folder " + dir.string() + " is not empty");
-  } else if (!fs::create_directories(dir, ec)) {
+  } else if (fs::create_directories(dir, ec); !fs::is_directory(dir)) {  // (its result is false for "a/b/")
     throw std::runtime_error("cannot create the recording folder " + dir.string() + ": " + ec.message());
   }
   recording_.dir = std::move(dir);

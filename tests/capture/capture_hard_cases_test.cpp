@@ -107,6 +107,18 @@ TEST(CaptureHardCases, CorruptJpegsNeverCrash) {
   }
 }
 
+TEST(CaptureHardCases, IncompressibleJpegsGrowTheirBuffer) {
+  // Noise at quality 100 takes far more than the half byte per pixel the
+  // encoder starts with. Grey noise, so 4:2:0 chroma loses nothing.
+  cv::Mat grey(384, 512, CV_8UC1), img;
+  cv::RNG(8).fill(grey, cv::RNG::UNIFORM, 0, 256);
+  cv::cvtColor(grey, img, cv::COLOR_GRAY2RGB);
+  const Frame f = rgb8_to_frame(img, format_of(PixelFormat::MJPEG, 512, 384), 100);
+  EXPECT_GT(f.bytes_used, 2 * (512u * 384 / 2 + 16384)) << "the buffer did not need to grow twice";
+  EXPECT_LE(f.bytes_used, frame_bytes(f.format));
+  EXPECT_GT(cv::PSNR(frame_to_rgb8(f), img), 40);
+}
+
 TEST(CaptureHardCases, JpegSizeMustMatchTheFormat) {
   const auto bytes = bytes_of(rgb8_to_frame(noise(64, 48, 4), format_of(PixelFormat::MJPEG, 64, 48)));
   for (auto [w, h] : {std::pair{32, 48}, std::pair{64, 24}, std::pair{128, 96}, std::pair{48, 64}}) {
@@ -271,6 +283,7 @@ TEST(CaptureHardCases, RecordingsClaimingTooMuchAreRefusedUnread) {
   const std::string e = load_error(dir);
   EXPECT_NE(e.find("more than 512 MB"), std::string::npos) << e;
   EXPECT_THROW(ReplaySource{dir}, std::runtime_error);
+  fs::remove_all(dir);
 }
 
 TEST(CaptureHardCases, HostileManifests) {
@@ -312,6 +325,7 @@ TEST(CaptureHardCases, HostileManifests) {
   // Over-long manifests are refused before parsing.
   std::ofstream(dir / "recording.json", std::ios::trunc) << std::string(65u << 20, ' ');
   EXPECT_NE(load_error(dir).find("larger than 64 MB"), std::string::npos);
+  fs::remove_all(dir);
 }
 
 TEST(CaptureHardCases, ReplayOfImplausibleClocks) {
