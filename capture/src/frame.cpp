@@ -61,6 +61,7 @@ std::optional<PixelFormat> pixel_format_from_string(const std::string& name) {
 std::uint32_t fourcc(PixelFormat format) { return entry(format).fourcc; }
 
 std::optional<PixelFormat> pixel_format_from_fourcc(std::uint32_t code) {
+  if (code == V4L2_PIX_FMT_JPEG) return PixelFormat::MJPEG;  // some UVC drivers name it so; same bytes
   for (const auto& f : kFormats)
     if (f.fourcc == code) return f.format;
   return std::nullopt;

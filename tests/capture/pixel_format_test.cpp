@@ -150,6 +150,7 @@ TEST(PixelFormat, NamesAndFourccsRoundTrip) {
   EXPECT_EQ(fourcc(PixelFormat::NV12), v4l2_fourcc('N', 'V', '1', '2'));
   EXPECT_EQ(fourcc(PixelFormat::RGB24), v4l2_fourcc('R', 'G', 'B', '3'));
   EXPECT_EQ(fourcc(PixelFormat::GREY), v4l2_fourcc('G', 'R', 'E', 'Y'));
+  EXPECT_EQ(pixel_format_from_fourcc(V4L2_PIX_FMT_JPEG), PixelFormat::MJPEG);
   EXPECT_EQ(pixel_format_from_string("mjpg"), PixelFormat::MJPEG);
   EXPECT_EQ(pixel_format_from_string("nv12"), PixelFormat::NV12);
   EXPECT_FALSE(pixel_format_from_string("H264"));
