@@ -50,8 +50,19 @@ struct FrameFormat {
 
 // The smallest stride the format allows at this width, and the bytes a frame
 // of that format needs (the maximum for MJPEG: an upper bound, not a size).
+// A stride of 0 means rows packed at the minimum stride. Both throw
+// std::runtime_error on a format validate_frame_format rejects.
 int minimum_stride(PixelFormat format, int width);
 std::size_t frame_bytes(const FrameFormat& format);
+
+// Frames larger than this on either side are refused as implausible.
+inline constexpr int kMaxFrameDimension = 16384;
+
+// Throws std::runtime_error saying what is wrong: a width or height outside
+// 1..kMaxFrameDimension, a stride below the minimum (0 is packed) or above
+// 4 x minimum + 4096 (implausible padding), an odd width for YUYV/UYVY/NV12
+// or an odd height for NV12. MJPEG's stride is not looked at.
+void validate_frame_format(const FrameFormat& format);
 
 struct FrameMetadata {
   std::int64_t timestamp_ns = 0;  // CLOCK_MONOTONIC, when the sensor finished the frame
