@@ -518,6 +518,7 @@ struct CaptureServer::Impl {
   void camera_loop() {
     backoff = opt.reopen_backoff_min / 2;
     next_open = std::chrono::steady_clock::now();
+    try_reopen();  // before any command: those sent right after connecting find the camera open
     while (run_jobs_or_wait(std::nullopt)) {
       const auto now = std::chrono::steady_clock::now();
       if (!source) {
