@@ -26,6 +26,8 @@ struct Daemon {
     world->permits = 0;  // gated: each test lets frames through
     server = std::make_unique<CaptureServer>(test::test_factory(world), options);
     server->start();
+    // The camera opens on the server's thread; tests start from an open camera.
+    test::eventually([&] { return server->status().device_state != protocol::DeviceState::Closed; });
   }
   const std::string& path() const { return options.socket_path; }
 };
@@ -55,7 +57,7 @@ TEST(CaptureDaemon, FramesArriveIntactAndInOrder) {
   EXPECT_EQ(s.camera_id, "test:a");
   EXPECT_EQ(s.device_state, protocol::DeviceState::Streaming);
   EXPECT_EQ(s.frames_captured, 40u);
-  const auto* me = test::find_client(s, client.client_id());
+  const auto me = test::find_client(s, client.client_id());
   ASSERT_TRUE(me);
   EXPECT_EQ(me->frames_sent, 40u);
   EXPECT_EQ(me->frames_dropped, 0u);
@@ -100,8 +102,8 @@ TEST(CaptureDaemon, SlowClientMissesFramesFastClientGetsEvery) {
   }
   EXPECT_EQ(d.world->produced(), kFrames);  // the camera was never held back
   const protocol::Status s = fast.status();
-  const auto* fs = test::find_client(s, fast.client_id());
-  const auto* ss = test::find_client(s, slow.client_id());
+  const auto fs = test::find_client(s, fast.client_id());
+  const auto ss = test::find_client(s, slow.client_id());
   ASSERT_TRUE(fs && ss);
   EXPECT_EQ(fs->frames_sent, kFrames);
   EXPECT_EQ(fs->frames_dropped, 0u);
@@ -122,12 +124,12 @@ TEST(CaptureDaemon, HeldFramesLimitIsPerClientAndReleasingResumes) {
   d.world->allow(3);  // all missed: both slots held
   ASSERT_TRUE(test::eventually([&] { return d.world->produced() == 5; }));
   ASSERT_TRUE(test::eventually([&] {
-    const auto* me = test::find_client(c.status(), c.client_id());
+    const auto me = test::find_client(c.status(), c.client_id());
     return me && me->frames_dropped == 3;
   }));
   first = CaptureResult{};  // releases one slot
   ASSERT_TRUE(test::eventually([&] {
-    const auto* me = test::find_client(c.status(), c.client_id());
+    const auto me = test::find_client(c.status(), c.client_id());
     return me && me->slots_held == 1;
   }));
   d.world->allow(1);

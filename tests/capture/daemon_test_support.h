@@ -264,10 +264,11 @@ inline CaptureResult next_non_timeout(CaptureClient& c, std::chrono::seconds lim
   return r;
 }
 
-inline const protocol::ClientStatus* find_client(const protocol::Status& s, std::uint32_t id) {
+// By value: callers often pass a temporary Status.
+inline std::optional<protocol::ClientStatus> find_client(const protocol::Status& s, std::uint32_t id) {
   for (const auto& c : s.clients)
-    if (c.client_id == id) return &c;
-  return nullptr;
+    if (c.client_id == id) return c;
+  return std::nullopt;
 }
 
 // A bare SOCK_SEQPACKET connection that sends whatever bytes it is given.
@@ -365,6 +366,18 @@ class RawClient {
 
 inline protocol::MessageType type_of(const std::vector<std::uint8_t>& packet) {
   return protocol::decode_header(packet.data(), packet.size()).type;
+}
+
+// The next packet that is not unsolicited (frames, events, a new ring).
+inline std::optional<RawClient::Packet> receive_reply(RawClient& raw) {
+  for (;;) {
+    auto p = raw.receive();
+    if (!p || p->closed) return p;
+    const auto t = type_of(p->bytes);
+    if (t != protocol::MessageType::FrameReady && t != protocol::MessageType::Event &&
+        t != protocol::MessageType::RingChanged)
+      return p;
+  }
 }
 
 }  // namespace propcam::capture::test
