@@ -5,6 +5,7 @@
 #include <filesystem>
 
 #include "daemon_test_support.h"
+#include "propcam/capture/capture_bench.h"
 
 namespace propcam::capture {
 namespace {
@@ -384,6 +385,51 @@ TEST(CaptureDaemon, DaemonFrameSourceBehavesLikeACamera) {
   EXPECT_EQ(camera.capture_still(std::nullopt, 1s).status, CaptureStatus::Ok);
   camera.stop();
   EXPECT_FALSE(camera.running());
+}
+
+TEST(CaptureDaemon, BenchMeasuresFramesAndLatency) {
+  DaemonBenchOptions o;
+  o.socket_path = test::temp_socket("bench.sock");
+  o.stream = StreamConfig{PixelFormat::YUYV, 64, 48, 200};
+  o.frames = 40;
+  const DaemonBenchResult r = measure_daemon_throughput(synthetic_source_factory(), o);
+  EXPECT_EQ(r.stopped_because, "frames");
+  EXPECT_EQ(r.frames_received, 40);
+  EXPECT_GT(r.fps, 0);
+  EXPECT_GE(r.frames_captured, 40u);
+  EXPECT_GE(r.total.mean_ms, 0);
+  EXPECT_GE(r.total.p95_ms, 0);
+  EXPECT_LE(r.total.mean_ms, r.total.max_ms);
+  EXPECT_GE(r.source.mean_ms, 0);
+  EXPECT_GE(r.daemon.mean_ms, 0);
+  EXPECT_FALSE(std::filesystem::exists(o.socket_path));
+  EXPECT_THROW(measure_daemon_throughput(synthetic_source_factory(), DaemonBenchOptions{"", "x", {}, 0, {}, {}}),
+               std::invalid_argument);
+}
+
+// Not run by default: prints the daemon's figures
+// (capture_tests --gtest_also_run_disabled_tests --gtest_filter='*MeasureDaemon*').
+TEST(CaptureDaemon, DISABLED_MeasureDaemonThroughput) {
+  struct Case {
+    const char* name;
+    StreamConfig stream;
+    int frames;
+  };
+  const Case cases[] = {{"640x480 YUYV @30", {PixelFormat::YUYV, 640, 480, 30}, 150},
+                        {"640x480 YUYV unpaced", {PixelFormat::YUYV, 640, 480, 0}, 2000},
+                        {"1280x720 NV12 unpaced", {PixelFormat::NV12, 1280, 720, 0}, 1000},
+                        {"1920x1080 YUYV unpaced", {PixelFormat::YUYV, 1920, 1080, 0}, 500}};
+  for (const Case& c : cases) {
+    DaemonBenchOptions o;
+    o.stream = c.stream;
+    o.frames = c.frames;
+    const DaemonBenchResult r = measure_daemon_throughput(synthetic_source_factory(), o);
+    std::printf("%-24s %5d frames %7.1f fps  total mean %.3f p95 %.3f ms  daemon mean %.3f p95 %.3f ms  "
+                "source mean %.3f ms  captured %llu dropped %llu gaps %llu\n",
+                c.name, r.frames_received, r.fps, r.total.mean_ms, r.total.p95_ms, r.daemon.mean_ms, r.daemon.p95_ms,
+                r.source.mean_ms, static_cast<unsigned long long>(r.frames_captured),
+                static_cast<unsigned long long>(r.frames_dropped), static_cast<unsigned long long>(r.sequence_gaps));
+  }
 }
 
 }  // namespace
