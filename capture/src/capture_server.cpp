@@ -232,7 +232,7 @@ struct CaptureServer::Impl {
     c.dead = true;
     c.viewfinder = false;
     release_all_locked(c);
-    log("client " + std::to_string(c.id) + " dropped: " + why);
+    log("client " + std::to_string(c.id) + " gone: " + why);
     wake_loop();
   }
 
