@@ -164,6 +164,7 @@ struct CaptureServer::Impl {
   dev_t socket_dev = 0;
   ino_t socket_ino = 0;
   bool started = false;
+  bool bound = false;  // the socket file is ours to remove
 
   std::mutex life_mu;
   std::condition_variable life_cv;
@@ -192,15 +193,16 @@ struct CaptureServer::Impl {
     if (!listen_fd) detail::throw_errno("socket");
     if (::bind(listen_fd.get(), reinterpret_cast<const sockaddr*>(&addr), sizeof addr) != 0)
       detail::throw_errno("bind " + path);
+    if (::lstat(path.c_str(), &st) != 0) detail::throw_errno("stat " + path);
+    socket_dev = st.st_dev;
+    socket_ino = st.st_ino;
+    bound = true;
     // Permissions before listen(), so nobody connects through a wider mode.
     if (::chmod(path.c_str(), 0660) != 0) detail::throw_errno("chmod " + path);
     if (const auto gid = group_id(opt.socket_group)) {
       if (::chown(path.c_str(), static_cast<uid_t>(-1), *gid) != 0)
         log("cannot give " + path + " to group " + opt.socket_group + ": " + std::strerror(errno));
     }
-    if (::lstat(path.c_str(), &st) != 0) detail::throw_errno("stat " + path);
-    socket_dev = st.st_dev;
-    socket_ino = st.st_ino;
     if (::listen(listen_fd.get(), 16) != 0) detail::throw_errno("listen");
   }
 
@@ -720,6 +722,7 @@ struct CaptureServer::Impl {
     if (events & EPOLLIN) {
       for (int i = 0; i < kPacketsPerWakeup; ++i) {
         Received r = detail::recv_packet(fd, true);
+        r.fd.reset();  // clients have no reason to send fds: closed before anything is answered
         if (r.kind == Received::Kind::WouldBlock) break;
         if (r.kind == Received::Kind::Closed) return disconnect(id, "disconnected");
         if (r.kind == Received::Kind::Truncated) {
@@ -923,7 +926,7 @@ void CaptureServer::stop() {
     m.ring.reset();
   }
   m.listen_fd.reset();
-  if (m.started) m.remove_socket_file();
+  if (m.bound) m.remove_socket_file();
   {
     std::lock_guard lock(m.life_mu);
     m.stopped = true;

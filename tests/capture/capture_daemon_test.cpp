@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <grp.h>
 #include <sys/stat.h>
 
 #include <filesystem>
@@ -320,6 +321,23 @@ TEST(CaptureDaemon, SocketIsGroupReadWriteOnly) {
   struct stat st {};
   ASSERT_EQ(::stat(d.path().c_str(), &st), 0);
   EXPECT_TRUE(S_ISSOCK(st.st_mode));
+  EXPECT_EQ(st.st_mode & 07777, 0660u);
+}
+
+TEST(CaptureDaemon, SocketGoesToItsGroupWhenTheGroupExists) {
+  {
+    Daemon missing([](CaptureServerOptions& o) { o.socket_group = "propcam-no-such-group"; });
+    CaptureClient c(missing.path());  // no group: still serving
+  }
+  const group* g = ::getgrnam("nogroup");
+  if (!g) g = ::getgrnam("daemon");
+  if (!g || ::geteuid() != 0) GTEST_SKIP() << "needs root and a nogroup/daemon group";
+  const gid_t gid = g->gr_gid;
+  const std::string name = g->gr_name;
+  Daemon d([&](CaptureServerOptions& o) { o.socket_group = name; });
+  struct stat st {};
+  ASSERT_EQ(::stat(d.path().c_str(), &st), 0);
+  EXPECT_EQ(st.st_gid, gid);
   EXPECT_EQ(st.st_mode & 07777, 0660u);
 }
 
