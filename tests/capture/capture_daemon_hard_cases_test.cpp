@@ -242,6 +242,45 @@ TEST(CaptureDaemonHardCases, ClientThatNeverReadsIsDropped) {
   ASSERT_TRUE(test::eventually([&] { return good.status().clients.size() == 1; }));
 }
 
+TEST(CaptureDaemonHardCases, FrameReaderWhoseSocketFillsIsDropped) {
+  // Slots enough that the socket fills before the hold limit: frames then
+  // fail with EAGAIN, are missed, and after max_stalled_frames the client goes.
+  auto log = std::make_shared<std::pair<std::mutex, std::vector<std::string>>>();
+  Daemon d(
+      [&](CaptureServerOptions& o) {
+        o.ring_slots = 1024;
+        o.max_held_slots = 1000;
+        o.max_stalled_frames = 8;
+        o.log = [log](const std::string& line) {
+          std::lock_guard lock(log->first);
+          log->second.push_back(line);
+        };
+      },
+      -1);
+  CaptureClient good(d.path());
+  good.start_viewfinder();
+  RawClient stalled(d.path());
+  ASSERT_TRUE(stalled.receive());
+  ASSERT_TRUE(stalled.send(proto::encode(proto::MessageType::StartViewfinder, 1)));
+  ASSERT_TRUE(test::eventually([&] {
+    // Keep the good client reading (and releasing) while the other stalls.
+    const CaptureResult r = good.next_frame(100ms);
+    if (r.status == CaptureStatus::Ok) {
+      EXPECT_TRUE(intact(*r.frame));
+    }
+    return good.status().clients.size() == 1;
+  }));
+  EXPECT_TRUE(stalled.hung_up());
+  {
+    std::lock_guard lock(log->first);
+    EXPECT_TRUE(std::any_of(log->second.begin(), log->second.end(),
+                            [](const std::string& l) { return l.find("stopped reading") != std::string::npos; }));
+  }
+  const CaptureResult r = test::next_non_timeout(good);
+  ASSERT_EQ(r.status, CaptureStatus::Ok);
+  EXPECT_TRUE(intact(*r.frame));
+}
+
 TEST(CaptureDaemonHardCases, CameraNeverWaitsForClients) {
   Daemon d({}, -1);  // free-running camera
   CaptureClient slow(d.path());
