@@ -222,11 +222,20 @@ inline FrameSourceFactory test_factory(std::shared_ptr<TestWorld> world) {
   };
 }
 
+// This process's folder of test sockets, removed when the tests exit.
+struct TempRoot {
+  std::filesystem::path path = std::filesystem::temp_directory_path() / ("propcamd_test_" + std::to_string(::getpid()));
+  ~TempRoot() {
+    std::error_code ec;
+    std::filesystem::remove_all(path, ec);
+  }
+};
+inline TempRoot temp_root;
+
 // A fresh folder per test for the socket.
 inline std::string temp_socket(const std::string& name) {
   static std::atomic<int> counter{0};
-  const auto dir = std::filesystem::temp_directory_path() /
-                   ("propcamd_test_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
+  const auto dir = temp_root.path / std::to_string(counter++);
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   return (dir / name).string();
