@@ -1,0 +1,248 @@
+#include "propcam/capture/capture_bench.h"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <filesystem>
+#include <map>
+#include <mutex>
+#include <numeric>
+#include <stdexcept>
+#include <thread>
+
+#include "capture_socket.h"
+#include "propcam/capture/capture_client.h"
+
+namespace propcam::capture {
+namespace {
+
+using detail::monotonic_ns;
+using Clock = std::chrono::steady_clock;
+
+// Bytes of a synthetic frame (frame_bytes() lives in another branch).
+std::size_t synthetic_bytes(const StreamConfig& c) {
+  const std::size_t w = static_cast<std::size_t>(c.width), h = static_cast<std::size_t>(c.height);
+  switch (c.pixel_format) {
+    case PixelFormat::RGB24:
+    case PixelFormat::BGR24: return w * h * 3;
+    case PixelFormat::YUYV:
+    case PixelFormat::UYVY: return w * h * 2;
+    case PixelFormat::NV12: return w * h * 3 / 2;
+    case PixelFormat::GREY: return w * h;
+    case PixelFormat::MJPEG: return 0;
+  }
+  return 0;
+}
+
+class SyntheticSource final : public FrameSource {
+ public:
+  explicit SyntheticSource(std::string id) : id_(std::move(id)) {}
+
+  CameraInfo info() const override {
+    CameraInfo i;
+    i.id = id_;
+    i.backend = "synthetic";
+    i.description = "moving pattern for benchmarks";
+    for (PixelFormat f : {PixelFormat::YUYV, PixelFormat::RGB24, PixelFormat::NV12, PixelFormat::GREY})
+      i.formats.push_back(FormatSizes{f, {{640, 480}, {1280, 720}, {1920, 1080}}});
+    return i;
+  }
+  ConfigStatus configure(StreamConfig& c) override {
+    if (c.pixel_format == PixelFormat::MJPEG) return ConfigStatus::Invalid;
+    const StreamConfig asked = c;
+    c.width = std::clamp(c.width / 2 * 2, 2, 4096);
+    c.height = std::clamp(c.height / 2 * 2, 2, 4096);
+    c.fps = std::clamp(c.fps, 0.0, 1000.0);
+    config_ = c;
+    return asked.width == c.width && asked.height == c.height && asked.fps == c.fps ? ConfigStatus::Valid
+                                                                                     : ConfigStatus::Adjusted;
+  }
+  StreamConfig configuration() const override { return config_; }
+  void start() override {
+    running_ = true;
+    next_ = Clock::now();
+  }
+  void stop() override { running_ = false; }
+  bool running() const override { return running_; }
+
+  CaptureResult next_frame(std::chrono::milliseconds timeout) override {
+    if (!running_) throw std::logic_error("next_frame before start");
+    if (config_.fps > 0) {
+      const auto period = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / config_.fps));
+      if (next_ - Clock::now() > timeout) return CaptureResult{CaptureStatus::Timeout, std::nullopt, "not yet"};
+      std::this_thread::sleep_until(next_);
+      next_ = std::max(next_ + period, Clock::now() - period);  // no burst after a stall
+    }
+    return CaptureResult{CaptureStatus::Ok, make(config_), ""};
+  }
+  CaptureResult capture_still(const std::optional<StreamConfig>& still, std::chrono::milliseconds) override {
+    return CaptureResult{CaptureStatus::Ok, make(still.value_or(config_)), ""};
+  }
+  std::vector<std::string> set_controls(const CameraControls&) override { return {}; }
+
+ private:
+  Frame make(const StreamConfig& c) {
+    Frame f;
+    f.format.pixel_format = c.pixel_format;
+    f.format.width = c.width;
+    f.format.height = c.height;
+    f.bytes_used = synthetic_bytes(c);
+    f.format.stride = c.height > 0 && c.pixel_format != PixelFormat::NV12
+                          ? static_cast<int>(f.bytes_used / static_cast<std::size_t>(c.height))
+                          : c.width;
+    std::vector<std::uint8_t> bytes(f.bytes_used);
+    const auto shift = static_cast<std::uint8_t>(sequence_);
+    for (std::size_t i = 0; i < bytes.size(); ++i) bytes[i] = static_cast<std::uint8_t>(i + shift);
+    f.buffer = std::make_shared<VectorFrameBuffer>(std::move(bytes));
+    f.metadata.sequence = sequence_++;
+    f.metadata.timestamp_ns = monotonic_ns();
+    return f;
+  }
+
+  std::string id_;
+  StreamConfig config_;
+  bool running_ = false;
+  Clock::time_point next_{};
+  std::uint64_t sequence_ = 0;
+};
+
+// When next_frame returned, by sequence number, shared by the server's
+// camera thread (writer) and the bench's client (reader).
+struct DeliveryTimes {
+  std::mutex mu;
+  std::map<std::uint64_t, std::int64_t> by_sequence;
+  void record(std::uint64_t seq, std::int64_t t) {
+    std::lock_guard lock(mu);
+    by_sequence[seq] = t;
+    while (by_sequence.size() > 4096) by_sequence.erase(by_sequence.begin());
+  }
+  std::optional<std::int64_t> take(std::uint64_t seq) {
+    std::lock_guard lock(mu);
+    const auto it = by_sequence.find(seq);
+    if (it == by_sequence.end()) return std::nullopt;
+    const std::int64_t t = it->second;
+    by_sequence.erase(by_sequence.begin(), std::next(it));
+    return t;
+  }
+};
+
+// Forwards to the real source and notes when each frame left it.
+class TimedSource final : public FrameSource {
+ public:
+  TimedSource(std::unique_ptr<FrameSource> inner, std::shared_ptr<DeliveryTimes> times)
+      : inner_(std::move(inner)), times_(std::move(times)) {}
+  CameraInfo info() const override { return inner_->info(); }
+  ConfigStatus configure(StreamConfig& c) override { return inner_->configure(c); }
+  StreamConfig configuration() const override { return inner_->configuration(); }
+  void start() override { inner_->start(); }
+  void stop() override { inner_->stop(); }
+  bool running() const override { return inner_->running(); }
+  CaptureResult next_frame(std::chrono::milliseconds timeout) override {
+    CaptureResult r = inner_->next_frame(timeout);
+    if (r.status == CaptureStatus::Ok && r.frame) times_->record(r.frame->metadata.sequence, monotonic_ns());
+    return r;
+  }
+  CaptureResult capture_still(const std::optional<StreamConfig>& s, std::chrono::milliseconds t) override {
+    return inner_->capture_still(s, t);
+  }
+  std::vector<std::string> set_controls(const CameraControls& c) override { return inner_->set_controls(c); }
+
+ private:
+  std::unique_ptr<FrameSource> inner_;
+  std::shared_ptr<DeliveryTimes> times_;
+};
+
+LatencyStats stats_of(std::vector<double> ms) {
+  LatencyStats s;
+  if (ms.empty()) return s;
+  std::sort(ms.begin(), ms.end());
+  s.mean_ms = std::accumulate(ms.begin(), ms.end(), 0.0) / static_cast<double>(ms.size());
+  s.p95_ms = ms[std::min(ms.size() - 1, static_cast<std::size_t>(0.95 * static_cast<double>(ms.size())))];
+  s.max_ms = ms.back();
+  return s;
+}
+
+std::string bench_socket_path() {
+  static std::atomic<int> counter{0};
+  const auto dir = std::filesystem::temp_directory_path() /
+                   ("propcam_bench_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
+  std::filesystem::create_directories(dir);
+  return (dir / "capture.sock").string();
+}
+
+}  // namespace
+
+FrameSourceFactory synthetic_source_factory() {
+  return [](const std::string& id) { return std::make_unique<SyntheticSource>(id); };
+}
+
+DaemonBenchResult measure_daemon_throughput(const FrameSourceFactory& factory, const DaemonBenchOptions& options) {
+  if (options.frames <= 0 && options.duration.count() <= 0)
+    throw std::invalid_argument("measure_daemon_throughput: set frames or duration");
+  auto times = std::make_shared<DeliveryTimes>();
+  FrameSourceFactory timed = [factory, times](const std::string& id) -> std::unique_ptr<FrameSource> {
+    auto inner = factory(id);
+    if (!inner) return nullptr;
+    return std::make_unique<TimedSource>(std::move(inner), times);
+  };
+  const bool own_folder = options.socket_path.empty();
+  CaptureServerOptions so;
+  so.socket_path = own_folder ? bench_socket_path() : options.socket_path;
+  so.camera_id = options.camera_id;
+  so.stream = options.stream;
+  CaptureServer server(timed, so);
+  server.start();
+
+  DaemonBenchResult result;
+  std::vector<double> total, source, daemon;
+  {
+    CaptureClient client(so.socket_path);
+    client.start_viewfinder();
+    const auto start = Clock::now();
+    const auto end = options.duration.count() > 0 ? start + options.duration : Clock::time_point::max();
+    std::optional<std::uint64_t> last_seq;
+    for (;;) {
+      if (options.frames > 0 && result.frames_received >= options.frames) {
+        result.stopped_because = "frames";
+        break;
+      }
+      if (Clock::now() >= end) {
+        result.stopped_because = "duration";
+        break;
+      }
+      const CaptureResult r = client.next_frame(options.frame_timeout);
+      const std::int64_t now = monotonic_ns();
+      if (r.status != CaptureStatus::Ok || !r.frame) {
+        result.stopped_because = r.status == CaptureStatus::Timeout ? "timeout" : r.message;
+        break;
+      }
+      const FrameMetadata& m = r.frame->metadata;
+      ++result.frames_received;
+      total.push_back(static_cast<double>(now - m.timestamp_ns) * 1e-6);
+      if (const auto delivered = times->take(m.sequence)) {
+        source.push_back(static_cast<double>(*delivered - m.timestamp_ns) * 1e-6);
+        daemon.push_back(static_cast<double>(now - *delivered) * 1e-6);
+      }
+      if (last_seq && m.sequence > *last_seq + 1) result.sequence_gaps += m.sequence - *last_seq - 1;
+      last_seq = m.sequence;
+    }
+    result.seconds = std::chrono::duration<double>(Clock::now() - start).count();
+    const protocol::Status st = client.status();
+    result.frames_captured = st.frames_captured;
+    for (const auto& c : st.clients)
+      if (c.client_id == client.client_id()) result.frames_dropped = c.frames_dropped;
+  }
+  server.stop();
+  if (own_folder) {
+    std::error_code ec;
+    std::filesystem::remove_all(std::filesystem::path(so.socket_path).parent_path(), ec);
+  }
+  result.fps = result.seconds > 0 ? result.frames_received / result.seconds : 0;
+  result.total = stats_of(std::move(total));
+  result.source = stats_of(std::move(source));
+  result.daemon = stats_of(std::move(daemon));
+  return result;
+}
+
+}  // namespace propcam::capture
