@@ -6,6 +6,7 @@
 #include "propcam/capture/libcamera_source.h"
 
 #include <sys/mman.h>
+#include <sys/stat.h>
 
 #include <libcamera/camera.h>
 #include <libcamera/camera_manager.h>
@@ -707,6 +708,16 @@ std::vector<CameraInfo> list_libcamera_cameras() {
     cameras.push_back(CameraInfo{"libcamera:" + camera->id(), "libcamera", camera_description(*camera),
                                  camera_formats(*camera)});
   return cameras;
+}
+
+bool libcamera_owns_device(const std::string& device_path) {
+  struct stat st {};
+  if (::stat(device_path.c_str(), &st) != 0 || !S_ISCHR(st.st_mode)) return false;
+  try {
+    return camera_manager()->get(st.st_rdev) != nullptr;
+  } catch (const std::exception&) {
+    return false;
+  }
 }
 
 }  // namespace propcam::capture

@@ -49,6 +49,11 @@ class LibcameraSource final : public FrameSource {
 // Every camera libcamera sees (empty when the manager cannot start).
 std::vector<CameraInfo> list_libcamera_cameras();
 
+// True when a libcamera camera is built on this V4L2 device node (a UVC
+// webcam is both), so the registry lists it once, as the libcamera camera.
+// False when the manager cannot start or the path is not a device.
+bool libcamera_owns_device(const std::string& device_path);
+
 // The pure parts of the backend, exposed for tests.
 namespace libcamera_map {
 
