@@ -1,13 +1,25 @@
 #!/usr/bin/env bash
 # Installs what is missing, builds, and runs the appliance's main job on the
-# bundled photo and on two real photos: infer the scene and composite a prop.
+# bundled recorded frames and on two real photos: shoot, infer the scene and
+# composite a prop.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 cmake --preset release
-cmake --build --preset release -j "$(nproc)" --target propcam
+cmake --build --preset release -j "$(nproc)" --target propcam propcamd
 mkdir -p out
-./build/release/firmware/propcam composite board/virtual/photos/living_room.png \
+# The virtual board's camera: propcamd serves the recorded raw frames
+# (board/virtual/recordings, YUYV) and `propcam shoot` takes the still
+# through it, by the same conversion code a live camera's frames go through.
+rm -f out/propcamd.sock
+./build/release/firmware/propcamd --socket out/propcamd.sock \
+  --camera replay:board/virtual/recordings/living_room &
+daemon=$!
+trap 'kill "$daemon" 2>/dev/null || true' EXIT
+for _ in $(seq 100); do [ -S out/propcamd.sock ] && break; sleep 0.1; done
+./build/release/firmware/propcam shoot --daemon out/propcamd.sock -o out/shot.png
+kill "$daemon"; wait "$daemon" || true
+./build/release/firmware/propcam composite out/shot.png \
   --prop chair --at 320,350 --spp 64 --save-scene out/living_room_scene -o out/composite.png
 # Real photographs: a hotel room cut from blender-data's CC0 panorama, and
 # OpenCV's sample street façade (both installed from Debian by setup.sh).

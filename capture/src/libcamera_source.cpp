@@ -21,6 +21,7 @@
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
+#include <cstdlib>
 #include <cstring>
 #include <deque>
 #include <map>
@@ -62,10 +63,12 @@ std::shared_ptr<lc::CameraManager> g_manager;
 
 // One started CameraManager for the process (libcamera allows only one).
 // Its log levels are libcamera's (LIBCAMERA_LOG_LEVELS): its categories are
-// created lazily, so logSetLevel() before start() would not reach them.
+// created lazily, so logSetLevel() before start() would not reach them. Left
+// unset, warnings and errors only: its INFO lines would bury the CLI's output.
 std::shared_ptr<lc::CameraManager> camera_manager() {
   std::lock_guard lock(g_manager_mutex);
   if (g_manager) return g_manager;
+  ::setenv("LIBCAMERA_LOG_LEVELS", "*:WARN", /*overwrite=*/0);
   auto manager = std::make_shared<lc::CameraManager>();
   if (const int ret = manager->start())
     throw std::runtime_error("libcamera: CameraManager::start: " + errno_text(-ret));

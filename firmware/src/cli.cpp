@@ -16,6 +16,7 @@
 #include "bench_camera.h"
 #include "bench_geometry.h"
 #include "bench_lighting.h"
+#include "capture_commands.h"
 #include "light_training.h"
 #include "bench_transfer.h"
 #include "bench_scene_class.h"
@@ -617,6 +618,15 @@ int run_cli(int argc, char** argv) {
   auto* bench_lights = add_bench_lights_command(*bench, bench_lights_args);
   IblTrainingArgs bench_ibl_args;
   auto* bench_ibl = add_bench_ibl_ranking_command(*bench, bench_ibl_args);
+  CaptureBenchArgs bench_capture_args;
+  auto* bench_capture = add_bench_capture_command(*bench, bench_capture_args);
+
+  CamerasArgs cameras_args;
+  auto* cameras = add_cameras_command(app, cameras_args);
+  RecordArgs record_args;
+  auto* record = add_record_command(app, record_args);
+  ShootArgs shoot_args;
+  auto* shoot = add_shoot_command(app, shoot_args);
 
   RenderBenchOptions render_bench_options;
   bool render_bench_json = false;
@@ -709,6 +719,10 @@ int run_cli(int argc, char** argv) {
     if (*bench_lighting) return run_bench_lighting_command(bench_lighting_args);
     if (*bench_lights) return run_bench_lights_command(bench_lights_args);
     if (*bench_ibl) return run_bench_ibl_ranking_command(bench_ibl_args);
+    if (*bench_capture) return run_bench_capture_command(bench_capture_args);
+    if (*cameras) return run_cameras_command(cameras_args);
+    if (*record) return run_record_command(record_args);
+    if (*shoot) return run_shoot_command(shoot_args);
     if (*bench) {
       if (!parse_pair(bench_size, bench_options.width, bench_options.height, 'x') || bench_options.width < 32 ||
           bench_options.height < 32)

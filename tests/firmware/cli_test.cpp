@@ -10,6 +10,9 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <random>
+#include <csignal>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include "propcam/capture/image_file.h"
 #include "propcam/inference/depth_transfer.h"
@@ -224,7 +227,9 @@ TEST(Cli, InferTakesThePhotosExifFocalLengthAsThePrior) {
   ASSERT_EQ(c.exit_code, 0) << c.out;
   const json calibrated = json_tail(c.out)["reports"];
   for (const auto& rep : calibrated)
-    if (rep["stage"] == "camera") EXPECT_DOUBLE_EQ(rep["details"]["focal_prior_px"].get<double>(), 300.0);
+    if (rep["stage"] == "camera") {
+      EXPECT_DOUBLE_EQ(rep["details"]["focal_prior_px"].get<double>(), 300.0);
+    }
 }
 
 TEST(Cli, BenchReportsStagesAndPlots) {
@@ -531,6 +536,97 @@ TEST(CliRealPhoto, InfersAndCompositesOnAStreetFacade) {
   cv::Mat diff;
   cv::absdiff(before, after, diff);
   EXPECT_GT(cv::countNonZero(diff.reshape(1) > 0.05), 50) << "the prop is visible";
+}
+
+}  // namespace
+
+// The camera commands on the virtual board's replay camera and on recordings
+// made here: the real replay backend, pixel-format code and propcamd.
+namespace {
+
+double mean_abs_difference(const cv::Mat& a, const cv::Mat& b) {
+  cv::Mat diff;
+  cv::absdiff(a, b, diff);
+  const cv::Scalar m = cv::mean(diff);
+  return (m[0] + m[1] + m[2]) / 3.0;
+}
+
+TEST(CliCamera, CamerasListsTheVirtualBoardsReplayCamera) {
+  const CliRun r = propcam("cameras --json");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  bool replay = false;
+  for (const auto& c : json_tail(r.out))
+    if (c["backend"] == "replay" && c["id"].get<std::string>().find("board/virtual/recordings/living_room") != std::string::npos) {
+      replay = true;
+      EXPECT_EQ(c["formats"][0]["format"], "YUYV");
+      EXPECT_EQ(c["formats"][0]["sizes"][0], "640x480");
+    }
+  EXPECT_TRUE(replay) << r.out;
+}
+
+// record packs a photo as a camera would (each format), shoot takes it back
+// through the replay camera: the shot is the photo, up to the format's loss.
+TEST(CliCamera, RecordFromAPhotoThenShootFromTheRecording) {
+  const cv::Mat photo = propcam::capture::linear_to_srgb8(propcam::capture::load_photo_linear(fixture_photo()));
+  for (const std::string format : {"YUYV", "NV12", "MJPEG", "RGB24"}) {
+    const std::string dir = temp("recording_" + format);
+    fs::remove_all(dir);
+    CliRun r = propcam("record --from-photo " + fixture_photo() + " --format " + format + " --frames 3 --noise 0 -o " + dir + " --json");
+    ASSERT_EQ(r.exit_code, 0) << r.out;
+    EXPECT_EQ(json_tail(r.out)["frames"], 3);
+    const std::string shot = temp("shot_" + format + ".png");
+    r = propcam("shoot --camera replay:" + dir + " --settle-frames 2 -o " + shot + " --json");
+    ASSERT_EQ(r.exit_code, 0) << r.out;
+    EXPECT_EQ(json_tail(r.out)["format"], format);
+    const cv::Mat back = propcam::capture::linear_to_srgb8(propcam::capture::load_photo_linear(shot));
+    ASSERT_EQ(back.size(), photo.size());
+    EXPECT_LT(mean_abs_difference(back, photo), format == "RGB24" ? 0.01 : 4.0) << format;
+  }
+}
+
+TEST(CliCamera, ShootAndRecordRefuseWhatTheyCannotDo) {
+  EXPECT_NE(propcam("shoot --camera v4l2:/dev/null -o " + temp("x.png")).exit_code, 0);
+  EXPECT_NE(propcam("shoot --camera nowhere:1 -o " + temp("x.png")).exit_code, 0);
+  EXPECT_NE(propcam("record --from-photo " + fixture_photo() + " --format XYZ -o " + temp("bad_rec")).exit_code, 0);
+  const CliRun r = propcam("shoot --camera replay:/nonexistent/recording -o " + temp("x.png"));
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.out.find("/nonexistent/recording"), std::string::npos) << r.out;
+}
+
+// propcamd serves the replay camera; `propcam shoot --daemon` is its client.
+TEST(CliCamera, ShootThroughPropcamd) {
+  const std::string socket = temp("propcamd.sock");
+  const std::string recording = std::string(PROPCAM_SOURCE_DIR) + "/board/virtual/recordings/living_room";
+  const pid_t daemon = fork();
+  ASSERT_GE(daemon, 0);
+  if (daemon == 0) {
+    execl(PROPCAMD, PROPCAMD, "--socket", socket.c_str(), "--camera", ("replay:" + recording).c_str(),
+          static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  for (int i = 0; i < 200 && !fs::exists(socket); ++i) usleep(50 * 1000);  // at most 10 s
+  const std::string shot = temp("daemon_shot.png");
+  const CliRun r = propcam("shoot --daemon " + socket + " -o " + shot + " --json");
+  kill(daemon, SIGTERM);
+  int status = 0;
+  waitpid(daemon, &status, 0);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "propcamd stops cleanly on SIGTERM";
+  EXPECT_FALSE(fs::exists(socket)) << "propcamd removes its socket";
+  const cv::Mat back = propcam::capture::load_photo_linear(shot);
+  const cv::Mat photo = propcam::capture::load_photo_linear(std::string(PROPCAM_SOURCE_DIR) + "/board/virtual/photos/living_room.png");
+  ASSERT_EQ(back.size(), photo.size());
+  EXPECT_LT(mean_abs_difference(propcam::capture::linear_to_srgb8(back), propcam::capture::linear_to_srgb8(photo)), 4.0);
+}
+
+TEST(CliCamera, BenchCaptureReportsFpsAndLatency) {
+  const CliRun r = propcam("bench capture --frames 20 --json");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const json j = json_tail(r.out);
+  EXPECT_GT(j["fps"].get<double>(), 0.0);
+  EXPECT_GE(j["latency_ms"].get<double>(), 0.0);
+  ASSERT_EQ(j["runs"].size(), 2u);
+  for (const auto& run : j["runs"]) EXPECT_EQ(run["frames"], 20);
 }
 
 }  // namespace
