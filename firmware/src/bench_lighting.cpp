@@ -247,9 +247,19 @@ std::vector<Config> configs(const std::vector<std::string>& sweeps) {
                    [](inference::InferenceOptions& o) { o.lighting.keep_hypotheses = false; }});
   }
   if (wanted("sky"))
-    for (double w : {0.5, 0.25})
-      out.push_back({"sky", "sky weight >= " + std::to_string(w).substr(0, 4), w,
-                     [w](inference::InferenceOptions& o) { o.lighting.min_sky_weight = w; }});
+    out.push_back({"sky", "sky held at 1, albedo mean 0.5", 0,
+                   [](inference::InferenceOptions& o) { o.lighting.albedo_scale_from_sky = false; }});
+  if (wanted("sun"))
+    out.push_back({"sun", "sun chosen by fit error", 0,
+                   [](inference::InferenceOptions& o) { o.lighting.sun_from_shading = false; }});
+  if (wanted("albedo")) {
+    out.push_back({"albedo", "Color Retinex", 0, [](inference::InferenceOptions& o) {
+                     o.albedo.method = inference::AlbedoOptions::Method::Retinex;
+                   }});
+    for (double f : {0.01, 0.02, 0.08})
+      out.push_back({"albedo", "blur sigma " + std::to_string(f).substr(0, 4) + " of diagonal", f,
+                     [f](inference::InferenceOptions& o) { o.albedo.blur_sigma_fraction = f; }});
+  }
   if (wanted("response")) {
     out.push_back({"response", "gamma held at 1/2.2", 0,
                    [](inference::InferenceOptions& o) { o.lighting.fit.fit_gamma = false; }});
@@ -402,7 +412,7 @@ CLI::App* add_bench_lighting_command(CLI::App& bench, LightingBenchArgs& a) {
   cmd->add_option("--spp", a.options.spp, "Samples per pixel of photos, references and composites")->check(CLI::PositiveNumber);
   cmd->add_option("--prop", a.options.prop, "Prop inserted for the composite error");
   cmd->add_option("--height", a.options.prop_height_m, "Prop height in metres (0: its natural height)");
-  cmd->add_option("--sweeps", a.sweeps, "Comma-separated subset of basis_spp,basis_width,fit_pixels,superpixels,tint,ibl,sky,response (default: all)");
+  cmd->add_option("--sweeps", a.sweeps, "Comma-separated subset of basis_spp,basis_width,fit_pixels,superpixels,tint,ibl,sky,sun,albedo,response (default: all)");
   cmd->add_option("--plot", a.options.plot_dir, "Write lighting.png (gnuplot) to this folder");
   cmd->add_flag("--json", a.json_out, "Machine-readable output");
   return cmd;
@@ -410,7 +420,7 @@ CLI::App* add_bench_lighting_command(CLI::App& bench, LightingBenchArgs& a) {
 
 int run_bench_lighting_command(LightingBenchArgs a) {
   parse_bench_size(a.size, 16, a.options.width, a.options.height);
-  a.options.sweeps = parse_sweeps(a.sweeps, {"default", "basis_spp", "basis_width", "fit_pixels", "superpixels", "tint", "ibl", "sky", "response"});
+  a.options.sweeps = parse_sweeps(a.sweeps, {"default", "basis_spp", "basis_width", "fit_pixels", "superpixels", "tint", "ibl", "sky", "sun", "albedo", "response"});
   a.options.quiet = a.json_out;
   const json result = run_lighting_bench(a.options);
   if (!a.options.plot_dir.empty()) plot_lighting_bench(result, a.options.plot_dir);

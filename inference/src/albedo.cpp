@@ -108,6 +108,11 @@ cv::Mat estimate_albedo(const cv::Mat& photo_linear, const AlbedoOptions& option
   return albedo;
 }
 
+void scale_albedo(cv::Mat& albedo, double scale) {
+  if (!std::isfinite(scale) || scale < 0) throw std::invalid_argument("scale_albedo: scale must be finite and >= 0");
+  albedo = cv::min(cv::max(albedo * scale, 0.0), kMaxAlbedo);
+}
+
 double local_mse(const cv::Mat& estimate, const cv::Mat& truth, int window) {
   if (estimate.size() != truth.size() || estimate.type() != truth.type())
     throw std::invalid_argument("local_mse: images must match");

@@ -206,6 +206,7 @@ SceneModel complete_scene(const cv::Mat& photo_linear, const GeometryEstimate& g
   LightingEstimate lighting = estimate_lighting(photo, scene.depth, scene.albedo, camera, scene.planes, scene.indoor,
                                                 options.lighting, scene.indoor ? nullptr : &g.sky,
                                                 GeometryCues{g.orientation, g.sky.mask});
+  if (lighting.albedo_scale != 1.0) scale_albedo(scene.albedo, lighting.albedo_scale);
   scene.lights = std::move(lighting.lights);
   for (auto& r : lighting.reports) scene.reports.push_back(std::move(r));
   scene.gamma = lighting.gamma;  // fitted with the intensities

@@ -29,6 +29,9 @@ constexpr double kSaturatedLinear = 0.98;
 constexpr double kMinBasisEnergy = 1e-12;
 // The per-channel balance may tint the fitted lights this much, no more.
 constexpr double kMinChannelGain = 0.25, kMaxChannelGain = 4.0;
+// The albedo's scale the seen sky may imply: a mean albedo of 0.5 (the
+// assumed one) times 0.1 is coal, times 1.9 is snow.
+constexpr double kMinAlbedoScale = 0.1, kMaxAlbedoScale = 1.9;
 // No channel of a seen source's colour drops below this share of its luminance.
 constexpr double kMinSourceChannel = 0.05;
 
@@ -113,6 +116,28 @@ Vector3d unit_luminance_colour(const Vector3d& rgb) {
   const double lum = 0.2126 * rgb.x() + 0.7152 * rgb.y() + 0.0722 * rgb.z();
   if (!(lum > 0)) return Vector3d::Ones();
   return (rgb / lum).cwiseMax(kMinSourceChannel);
+}
+
+// How well a light's shading agrees with where the photo is bright: the
+// correlation, over the fit's pixels, between the photo's log luminance and
+// the light's shading (its basis render over the albedo it was rendered
+// with). A sun from the wrong side lights the facades that are dark in the
+// photo and shades the bright ones. The albedo cancels only in part (it is
+// the photo over its blurred luminance), which is why this is used to rank
+// suns, not to weigh them. 0 when either side does not vary.
+double shading_agreement(const cv::Mat& basis, const cv::Mat& albedo, const cv::Mat& photo,
+                         const std::vector<cv::Point>& pixels) {
+  constexpr double kMinAlbedoForShading = 0.02, kMinLuminance = 1e-4;
+  const auto luminance = [](const cv::Vec3f& v) { return 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2]; };
+  double n = 0, sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
+  for (const cv::Point& p : pixels) {
+    const double shading = luminance(basis.at<cv::Vec3f>(p)) / std::max(kMinAlbedoForShading, luminance(albedo.at<cv::Vec3f>(p)));
+    const double bright = std::log(std::max(kMinLuminance, luminance(photo.at<cv::Vec3f>(p))));
+    n += 1, sx += shading, sy += bright, sxx += shading * shading, syy += bright * bright, sxy += shading * bright;
+  }
+  if (n < 2) return 0.0;
+  const double vx = sxx - sx * sx / n, vy = syy - sy * sy / n, cxy = sxy - sx * sy / n;
+  return vx > kMinBasisEnergy && vy > kMinBasisEnergy ? cxy / std::sqrt(vx * vy) : 0.0;
 }
 
 }  // namespace
@@ -429,10 +454,13 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
     return c < 3 ? v[c] : 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2];
   };
   std::vector<double> lower(k, 0.0), upper(k, std::numeric_limits<double>::infinity());
-  // The environment is last; a seen sky is measured (weight 1), or at least
-  // bounds it (options.min_sky_weight < 1: the seen sky is brighter than the
-  // zenith it stands for).
-  if (sky_calibrated) lower[k - 1] = std::clamp(options.min_sky_weight, 0.0, 1.0), upper[k - 1] = 1.0;
+  // The environment is last; a seen sky is measured: weight 1, or, when it
+  // sets the albedo's scale, the scale (see LightingOptions).
+  const bool scale_from_sky = sky_calibrated && options.albedo_scale_from_sky;
+  if (sky_calibrated) {
+    lower[k - 1] = scale_from_sky ? kMinAlbedoScale : 1.0;
+    upper[k - 1] = scale_from_sky ? kMaxAlbedoScale : 1.0;
+  }
   // Which lights, how bright, and the camera response: the paper's fit
   // (intensity_fit.h) on luminance, the photo as the camera encoded it
   // (fitting each channel on its own lets a light turn a colour no lamp has,
@@ -451,6 +479,22 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   }
   for (const auto& p : fit_pixels)
     problem.target.push_back(capture::linear_to_srgb(static_cast<float>(photo_value(p, 3))));
+  // Outdoors there is one sun, and the ground alone cannot tell its
+  // azimuth: the fit weighs only the sun whose shading agrees best with the
+  // photo (shading_agreement).
+  const int suns_begin = static_cast<int>(visible_sources), suns_end = k - 1;
+  nlohmann::json sun_agreement = nlohmann::json::array();
+  if (!indoor && options.sun_from_shading && suns_end - suns_begin > 1) {
+    int best = -1;
+    double best_agreement = -std::numeric_limits<double>::infinity();
+    for (int i = suns_begin; i < suns_end; ++i) {
+      const double a = shading_agreement(basis[i], fit_albedo, fit_photo, used);
+      sun_agreement.push_back(a);
+      if (a > best_agreement) best_agreement = a, best = i;
+    }
+    for (int i = suns_begin; i < suns_end; ++i)
+      if (i != best) upper[i] = 0.0;
+  }
   IntensityFitOptions fit_options = options.fit;
   fit_options.max_seconds = std::max(0.05, options.fit.max_seconds);
   const auto solve = [&](const std::vector<double>& upper_bounds, const IntensityFitOptions& o) {
@@ -460,7 +504,6 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   IntensityFitResult chosen = solve(upper, fit_options);
   // Outdoors there is one sun: of the sun hypotheses the fit used, keep the
   // one that alone (with the other lights) explains the photo best.
-  const int suns_begin = static_cast<int>(visible_sources), suns_end = k - 1;
   int suns_used = 0;
   for (int i = suns_begin; i < suns_end; ++i) suns_used += chosen.weights[i] > 0;
   if (!indoor && suns_used > 1) {
@@ -502,9 +545,9 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   // Colour: each light keeps its own colour (a seen source the colour it has
   // in the photo, unseen ones white) and one gain per channel balances the
   // fitted lights against the photo, like a white balance. A measured sky
-  // keeps its measured weight.
+  // keeps its fitted weight (1, or the albedo's scale).
   const int fixed = sky_calibrated ? k - 1 : -1;
-  const double sky_weight = fixed < 0 ? 0.0 : (options.min_sky_weight >= 1.0 ? 1.0 : chosen.weights[fixed]);
+  const double sky_weight = fixed < 0 ? 0.0 : std::clamp(chosen.weights[fixed], lower[fixed], upper[fixed]);
   std::vector<Eigen::Vector3d> weights(k, Eigen::Vector3d::Zero());
   Eigen::Vector3d gains = Eigen::Vector3d::Ones();
   for (int c = 0; c < 3; ++c) {
@@ -541,6 +584,12 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
       signal += observed * observed;
     }
   }
+  // The sky's weight is the albedo's scale: lights in the scaled albedo's
+  // units render the same image with the sky at its measured radiance.
+  if (scale_from_sky) {
+    out.albedo_scale = sky_weight;
+    for (auto& w : weights) w /= sky_weight;
+  }
   bool any_light = false;
   for (int i = 0; i < k; ++i) {
     out.lights[i].intensity = weights[i];
@@ -569,8 +618,10 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
                  {"converged", converged}, {"termination", chosen.termination}, {"pixels", used.size()},
                  {"fit_pixels", fit_pixels.size()}, {"gamma_solves", chosen.solves},
                  {"camera_response_gamma", chosen.gamma}, {"response_exponent", response},
+                 {"albedo_scale", out.albedo_scale},
                  {"fit_error_encoded", chosen.data_error},
                  {"basis_render_seconds", basis_seconds}, {"fit_seconds", seconds_since(fit_start)},
+                 {"sun_shading_agreement", sun_agreement},
                  {"visible_sources", visible_sources}, {"hypotheses", hypotheses}, {"kept", out.lights.size()}};
   out.reports.push_back(fit);
   out.gamma = response;

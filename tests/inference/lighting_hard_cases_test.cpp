@@ -97,6 +97,32 @@ TEST(LightingHardCases, LitOnlyFromBehindTheCamera) {
 
 TEST(LightingHardCases, OutdoorsWithoutASky) { expect_finite(run(cv::Mat(48, 64, CV_32FC3, cv::Scalar(0.4, 0.4, 0.4)), false)); }
 
+// A measured sky over a ground far darker or brighter than any albedo it
+// could light: the albedo's scale stops at its bounds, the output stays
+// finite and deterministic, and the sky keeps its measured radiance.
+TEST(LightingHardCases, AlbedoScaleFromTheSkyAtItsBounds) {
+  const Stage s;
+  SkyEstimate sky;
+  sky.mask = cv::Mat::zeros(48, 64, CV_8U);
+  sky.mask.rowRange(0, 8).setTo(255);
+  sky.fraction = 8.0 / 48.0;
+  sky.mean_colour = {0.6, 0.7, 0.9};
+  sky.blue = true;
+  for (const double ground : {1e-4, 0.97}) {
+    const cv::Mat photo(48, 64, CV_32FC3, cv::Scalar(ground, ground, ground));
+    const LightingEstimate a = estimate_lighting(photo, s.depth, s.albedo, s.camera, s.planes, false, fast(), &sky);
+    const LightingEstimate b = estimate_lighting(photo, s.depth, s.albedo, s.camera, s.planes, false, fast(), &sky);
+    expect_finite(a);
+    expect_same(a, b);
+    EXPECT_EQ(a.albedo_scale, b.albedo_scale);
+    EXPECT_TRUE(std::isfinite(a.albedo_scale));
+    EXPECT_GE(a.albedo_scale, 0.1) << ground;
+    EXPECT_LE(a.albedo_scale, 1.9) << ground;
+    ASSERT_EQ(a.lights.back().type, LightSource::Type::Ibl);
+    EXPECT_EQ(a.lights.back().intensity, Eigen::Vector3d::Ones()) << "the sky is a measurement";
+  }
+}
+
 TEST(LightingHardCases, GammaDrivenToItsBound) {
   // A photo made with a response steeper than the search allows: gamma stops
   // at its bound, finite.
@@ -134,7 +160,7 @@ TEST(LightingHardCases, MissingOrCorruptIblRankerFallsBackToTheHypotheses) {
   EXPECT_GE(ranked->details["ranked_candidates"].get<int>(), 1);
   const std::string corrupt = ::testing::TempDir() + "/corrupt_ranker.yml";
   std::ofstream(corrupt) << "%YAML:1.0\nformat: propcam-ibl-ranker\nversion: 1\nweights: [1, 2, 3]\n";
-  for (const std::string path : {std::string("/nonexistent/ranker.yml.gz"), corrupt}) {
+  for (const std::string& path : {std::string("/nonexistent/ranker.yml.gz"), corrupt}) {
     LightingOptions o = fast();
     o.ibl_ranker = path;
     const Stage s;

@@ -57,9 +57,18 @@ struct LightingOptions {
   int ibl_candidates_indoor = 1, ibl_candidates_outdoor = 1;
   int max_lights_per_ibl = 3;
   bool keep_hypotheses = true;  // the grid/sun hypotheses stay candidates beside the ranked lights
-  // Outdoors the seen sky's radiance lights the upper hemisphere at weight 1
-  // (a measurement); below 1 the fit may dim it down to this weight.
-  double min_sky_weight = 1.0;
+  // Outdoors the seen sky's radiance is a measurement: it lights the upper
+  // hemisphere at weight 1, and so it fixes what the albedo's scale (unknown
+  // from the photo alone) must be. With this on, the fit weighs the sky too;
+  // its weight w becomes the albedo's scale and every other light is divided
+  // by w, so the sky stays at its measured radiance. Off, the albedo keeps
+  // its assumed mean (AlbedoOptions::mean_albedo) and the sky is held at 1:
+  // on dark streets the sky alone then over-explains the photo and the sun
+  // comes out weak (`propcam bench lighting --sweeps sky`).
+  bool albedo_scale_from_sky = true;
+  // Outdoors, weigh only the sun candidate whose shading agrees best with the
+  // photo; off, the fit weighs them all and keeps the one that alone fits best.
+  bool sun_from_shading = true;
   uint64_t seed = 11;
 };
 
@@ -71,6 +80,9 @@ struct LightingEstimate {
   // (SceneModel::gamma). Light intensities are in the units of the photo
   // linearised with it.
   double gamma = 2.2;
+  // The factor the albedo passed in must be multiplied by for these light
+  // intensities (LightingOptions::albedo_scale_from_sky); 1 when unknown.
+  double albedo_scale = 1.0;
 };
 
 // What the geometry stage saw that the IBL ranking's features use (empty: unknown).
@@ -106,7 +118,9 @@ cv::Mat environment_from_photo(const cv::Mat& photo_linear, const render::Pinhol
 
 // Outdoors: the sky seen in the photo is a radiance measurement, so the upper
 // hemisphere takes the sky's colour and brightness; the lower hemisphere keeps
-// the Khan wrap of the photo (the ground).
+// the Khan wrap of the photo (the ground). (Grading it from horizon to zenith
+// by the CIE standard skies was measured worse on the generator's streets:
+// `propcam bench lighting`, inference/README.md.)
 cv::Mat environment_with_sky(const cv::Mat& photo_linear, const render::PinholeCamera& camera, int width,
                              const SkyEstimate& sky);
 

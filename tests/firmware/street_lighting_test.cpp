@@ -1,0 +1,61 @@
+// Outdoors the seen sky is a radiance measurement, and it fixes the albedo's
+// scale that a single photo leaves open (LightingOptions::albedo_scale_from_sky).
+#include <gtest/gtest.h>
+
+#include "propcam/inference/infer.h"
+#include "synthetic_truth.h"
+
+namespace propcam::firmware {
+namespace {
+
+struct Fitted {
+  double albedo_scale = 0, mean_albedo = 0, brightest_light = 0;
+};
+
+Fitted fit_street(const SyntheticShot& shot, const inference::GeometryEstimate& g, double assumed_mean_albedo,
+                  bool scale_from_sky) {
+  inference::InferenceOptions o;
+  o.albedo.mean_albedo = assumed_mean_albedo;
+  o.lighting.albedo_scale_from_sky = scale_from_sky;
+  const inference::SceneModel est = inference::complete_scene(shot.photo_linear, g, o);
+  Fitted f;
+  for (const auto& r : est.reports)
+    if (r.stage == "light_intensities") f.albedo_scale = r.details.at("albedo_scale").get<double>();
+  f.mean_albedo = cv::mean(est.albedo)[1];
+  for (const auto& l : est.lights)
+    if (l.type != inference::LightSource::Type::Ibl) f.brightest_light = std::max(f.brightest_light, l.intensity.maxCoeff());
+
+  return f;
+}
+
+// The albedo's assumed mean is a guess the photo cannot check; with the sky
+// setting the scale, halving the guess must not change the fitted albedo or
+// the lights (it doubles the scale instead). Without it, the lights follow
+// the guess.
+TEST(StreetLighting, TheSkyNotTheAssumedMeanSetsTheAlbedoScale) {
+  render::SyntheticStreetSpec spec;
+  spec.width = 320;
+  spec.height = 240;
+  spec.seed = 4;  // sky in view, and a sun the fit keeps
+  render::RenderSettings settings;
+  settings.samples_per_pixel = 16;
+  const SyntheticShot shot = shoot_synthetic_street(spec, settings);
+  const inference::GeometryEstimate g = inference::infer_geometry(shot.photo_linear, inference::InferenceOptions{});
+  ASSERT_FALSE(g.indoor);
+  const Fitted a = fit_street(shot, g, 0.5, true), b = fit_street(shot, g, 0.25, true);
+  ASSERT_GT(a.albedo_scale, 0.1);
+  ASSERT_LT(b.albedo_scale, 1.9);  // neither at a bound, so the scale is free
+  EXPECT_NEAR(b.albedo_scale / a.albedo_scale, 2.0, 0.3);
+  EXPECT_NEAR(b.mean_albedo / a.mean_albedo, 1.0, 0.15);
+  // The sparsity prior is not scale-free (it weighs the lights before the
+  // division by the scale), so the sun moves a little.
+  ASSERT_GT(a.brightest_light, 0);
+  EXPECT_NEAR(b.brightest_light / a.brightest_light, 1.0, 0.35);
+  const Fitted fixed_a = fit_street(shot, g, 0.5, false), fixed_b = fit_street(shot, g, 0.25, false);
+  EXPECT_EQ(fixed_a.albedo_scale, 1.0);
+  EXPECT_EQ(fixed_b.albedo_scale, 1.0);
+  EXPECT_NEAR(fixed_b.mean_albedo / fixed_a.mean_albedo, 0.5, 0.1);
+}
+
+}  // namespace
+}  // namespace propcam::firmware
