@@ -106,7 +106,7 @@ std::optional<std::int64_t> ButtonDebouncer::deadline(std::size_t index, Due* wh
     *what = Due::Long;
     best = saturating_add(s.pressed_at_ns, options_.long_press_ns);
   }
-  if (b.repeat && (!best || s.next_repeat_ns < *best)) {  // ties: LongPress first
+  if (b.repeat && !s.repeat_exhausted && (!best || s.next_repeat_ns < *best)) {  // ties: LongPress first
     *what = Due::Repeat;
     best = s.next_repeat_ns;
   }
@@ -125,6 +125,7 @@ void ButtonDebouncer::fire(std::size_t index, Due what, std::int64_t at) {
       if (s.stable) {
         s.pressed_at_ns = at;
         s.long_done = false;
+        s.repeat_exhausted = false;
         s.next_repeat_ns = saturating_add(at, options_.repeat_delay_ns);
         emit(index, ButtonEvent::Kind::Press, at);
       } else {
@@ -139,6 +140,8 @@ void ButtonDebouncer::fire(std::size_t index, Due what, std::int64_t at) {
       // `at` is later than scheduled only after a paused (glitching) hold: keep
       // the interval from there rather than bursting the missed ones.
       s.next_repeat_ns = saturating_add(at, options_.repeat_interval_ns);
+      // At the end of time the next repeat saturates onto this one: stop there.
+      s.repeat_exhausted = s.next_repeat_ns == at;
       emit(index, ButtonEvent::Kind::Repeat, at);
       break;
   }
@@ -162,11 +165,6 @@ void ButtonDebouncer::advance(std::int64_t now_ns) {
     if (!earliest) break;
     now_ns_ = std::max(*earliest, now_ns_);
     fire(which, what, now_ns_);
-    // A saturated deadline at the end of time fires once, then nothing is left.
-    if (now_ns_ == std::numeric_limits<std::int64_t>::max() && what == Due::Repeat) {
-      states_[which].next_repeat_ns = now_ns_;
-      break;
-    }
   }
   now_ns_ = target;
 }
@@ -218,6 +216,11 @@ bool ButtonDebouncer::idle() const {
 
 // --- FdButtonInput ----------------------------------------------------------
 
+std::int64_t timeout_to_ns(std::chrono::milliseconds timeout) {
+  constexpr std::int64_t kMaxMs = std::numeric_limits<std::int64_t>::max() / 1'000'000;
+  return std::clamp<std::int64_t>(timeout.count(), 0, kMaxMs) * 1'000'000;
+}
+
 std::int64_t monotonic_now_ns() {
   timespec ts{};
   clock_gettime(CLOCK_MONOTONIC, &ts);
@@ -242,9 +245,7 @@ void FdButtonInput::feed(const RawEdge& edge, std::int64_t now_ns) {
 }
 
 std::optional<ButtonEvent> FdButtonInput::next_event(std::chrono::milliseconds timeout) {
-  const std::int64_t timeout_ns =
-      std::max<std::int64_t>(0, std::chrono::nanoseconds(timeout).count());
-  const std::int64_t deadline = saturating_add(monotonic_now_ns(), timeout_ns);
+  const std::int64_t deadline = saturating_add(monotonic_now_ns(), timeout_to_ns(timeout));
   for (;;) {
     if (auto e = debouncer_.pop_event()) return e;
     std::int64_t now = monotonic_now_ns();

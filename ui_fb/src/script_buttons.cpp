@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 #include "propcam/ui_fb/buttons.h"
@@ -243,9 +244,11 @@ ButtonScript Parser::finish() {
       }
     }
   }
+  // Ties keep script order (the line), whichever button the edges belong to.
   std::stable_sort(script.edges.begin(), script.edges.end(),
                    [](const ButtonScript::Edge& a, const ButtonScript::Edge& b) {
-                     return a.edge.time_ns < b.edge.time_ns;
+                     if (a.edge.time_ns != b.edge.time_ns) return a.edge.time_ns < b.edge.time_ns;
+                     return a.line < b.line;
                    });
   if (!script.edges.empty()) script.end_ns = std::max(script.end_ns, script.edges.back().edge.time_ns);
   return script;
@@ -325,8 +328,11 @@ void ScriptButtonInput::feed_until(std::int64_t now_ns) {
 }
 
 std::optional<ButtonEvent> ScriptButtonInput::next_event(std::chrono::milliseconds timeout) {
+  const std::int64_t now = clock_->now_ns();
+  const std::int64_t wait = timeout_to_ns(timeout);
   const std::int64_t deadline =
-      clock_->now_ns() + std::max<std::int64_t>(0, std::chrono::nanoseconds(timeout).count());
+      now > std::numeric_limits<std::int64_t>::max() - wait ? std::numeric_limits<std::int64_t>::max()
+                                                            : now + wait;
   for (;;) {
     if (auto e = debouncer_.pop_event()) return e;
     const std::int64_t now = clock_->now_ns();

@@ -123,6 +123,7 @@ class ButtonDebouncer {
     std::int64_t pressed_at_ns = 0;
     bool long_done = false;
     std::int64_t next_repeat_ns = 0;
+    bool repeat_exhausted = false;  // saturated at INT64_MAX
   };
   enum class Due { Settle, Long, Repeat };
 
@@ -141,6 +142,8 @@ class ButtonDebouncer {
 
 // CLOCK_MONOTONIC now, in nanoseconds (the clock ButtonEvent times use).
 std::int64_t monotonic_now_ns();
+// A next_event() timeout in nanoseconds: negative counts as 0, huge ones saturate.
+std::int64_t timeout_to_ns(std::chrono::milliseconds timeout);
 
 // A source of debounced button events.
 class ButtonInput {
