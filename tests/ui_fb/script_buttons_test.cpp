@@ -204,6 +204,24 @@ TEST(ScriptButtonInput, LongPressRepeatAndGlitchThroughTheRealDebouncer) {
   EXPECT_EQ(events, expected);
 }
 
+TEST(ScriptButtonInput, TheReadmeExamplePlays) {
+  const auto events = play(
+      "# place a prop, render, export\n"
+      "at 0.5s press NEXT\n"
+      "+200ms press OK\n"
+      "+300ms press OK        # render\n"
+      "+1s hold OK 1200ms     # long press: export\n"
+      "bounce 3 2ms           # a worn switch from here on\n"
+      "+500ms press BACK\n");
+  std::string seen;
+  for (const auto& e : events) {
+    seen += std::string(button_name(e.button)) + " " + std::string(kind_name(e.kind)) + "; ";
+  }
+  EXPECT_EQ(seen,
+            "NEXT press; NEXT release; OK press; OK release; OK press; OK release; "
+            "OK press; OK long-press; OK release; BACK press; BACK release; ");
+}
+
 TEST(ScriptButtonInput, ManualClockSteppedByTheTest) {
   ManualButtonClock clock(ms(5000));
   ScriptButtonInput input(ButtonScript::parse("at 1s press OK\n"), clock);
