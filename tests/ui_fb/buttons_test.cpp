@@ -1,6 +1,8 @@
 // The debouncer with a fake clock: every time is explicit, nothing sleeps.
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <algorithm>
 
 #include "propcam/ui_fb/buttons.h"
@@ -244,6 +246,61 @@ TEST(ButtonDebouncer, RejectsInvalidOptions) {
   edge(d, Button::Shoot, true, ms(5));
   d.advance(ms(5));
   EXPECT_EQ(d.take_events(), (std::vector{ev(Button::Shoot, Kind::Press, ms(5))}));
+}
+
+// The poll loop the device backends share, driven through a pipe: 'O' / 'o' are
+// OK down / up at the read time. Real time, but every wait is bounded.
+class PipeButtons : public FdButtonInput {
+ public:
+  PipeButtons() : FdButtonInput(DebounceOptions{}) {
+    int fds[2];
+    if (::pipe(fds) != 0) throw std::runtime_error("pipe");
+    read_fd_ = fds[0];
+    write_fd_ = fds[1];
+  }
+  ~PipeButtons() override {
+    ::close(read_fd_);
+    close_writer();
+  }
+  int poll_fd() const override { return read_fd_; }
+  std::string name() const override { return "pipe"; }
+  void send(char c) { ASSERT_EQ(::write(write_fd_, &c, 1), 1); }
+  void close_writer() {
+    if (write_fd_ >= 0) ::close(write_fd_);
+    write_fd_ = -1;
+  }
+
+ private:
+  void read_ready(std::int64_t now_ns) override {
+    char buf[16];
+    const ssize_t n = ::read(read_fd_, buf, sizeof buf);
+    for (ssize_t i = 0; i < n; ++i) {
+      feed(RawEdge{Button::Ok, buf[i] == 'O', now_ns + ms(1000)}, now_ns);  // future: clamped
+    }
+  }
+  int read_fd_ = -1;
+  int write_fd_ = -1;
+};
+
+TEST(FdButtonInput, PollLoopDeliversDebouncedEventsAndTimers) {
+  PipeButtons input;
+  const auto wait = std::chrono::milliseconds(3000);
+  EXPECT_FALSE(input.next_event(std::chrono::milliseconds(0)));
+  input.send('O');
+  auto e = input.next_event(wait);
+  ASSERT_TRUE(e);
+  EXPECT_EQ(e->kind, Kind::Press);
+  EXPECT_LE(e->time_ns, monotonic_now_ns());  // the future timestamp was clamped
+  e = input.next_event(wait);  // nothing to read: the long-press timer wakes the loop
+  ASSERT_TRUE(e);
+  EXPECT_EQ(e->kind, Kind::LongPress);
+  input.send('o');
+  e = input.next_event(wait);
+  ASSERT_TRUE(e);
+  EXPECT_EQ(e->kind, Kind::Release);
+  EXPECT_TRUE(input.debouncer().idle());
+  input.close_writer();
+  EXPECT_THROW(input.next_event(wait), std::runtime_error);  // hung up, no spinning
 }
 
 }  // namespace

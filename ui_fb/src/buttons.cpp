@@ -257,7 +257,13 @@ std::optional<ButtonEvent> FdButtonInput::next_event(std::chrono::milliseconds t
       throw std::runtime_error("ui_fb: " + name() + ": poll failed: " + std::strerror(errno));
     }
     now = monotonic_now_ns();
-    if (ready > 0) read_ready(now);  // errors and hang-ups surface as read errors
+    if (ready > 0) {
+      read_ready(now);  // device errors surface here as read errors
+      // A hang-up with nothing left to read would otherwise spin until the timeout.
+      if ((p.revents & (POLLERR | POLLHUP | POLLNVAL)) && !(p.revents & POLLIN)) {
+        throw std::runtime_error("ui_fb: " + name() + ": input hung up");
+      }
+    }
     debouncer_.advance(now);
     if (auto e = debouncer_.pop_event()) return e;
     if (now >= deadline) return std::nullopt;
