@@ -12,6 +12,9 @@
 // the active one (a render cancelled with BACK that finishes anyway) is
 // Rejected as stale.
 //
+// Captured is the moment after SHOOT: the viewfinder freezes while the still
+// is read out (StartCapture in flight); analysis starts when it arrives.
+//
 // Placing has three steps, one per thing five buttons must choose:
 // Prop (NEXT/PREV cycle props), Spot (NEXT/PREV move the cursor between the
 // support-surface positions the firmware snaps to), Tier (NEXT/PREV cycle
