@@ -19,6 +19,8 @@
 #include <string>
 #include <vector>
 
+#include "propcam/ui_fb/buttons.h"
+
 namespace propcam::firmware {
 
 // A board file that cannot be used. what() is "<file>: <json path>: <problem>".
@@ -33,9 +35,9 @@ class BoardConfigError : public std::runtime_error {
   std::string json_path_;
 };
 
-// The five buttons, in the order the board files and README list them.
-enum class Button { Shoot, Next, Prev, Ok, Back };
-inline constexpr std::array kAllButtons{Button::Shoot, Button::Next, Button::Prev, Button::Ok, Button::Back};
+// The five buttons are ui_fb's (the input backends deliver them).
+using Button = ui_fb::Button;
+using ui_fb::kAllButtons;
 const char* to_string(Button button);  // "shoot", "next", ... as in board.json
 
 enum class ButtonBackend { Gpiod, Evdev, Script };
