@@ -16,6 +16,8 @@ namespace {
 namespace fs = std::filesystem;
 
 constexpr std::string_view kV4l2Prefix = "v4l2:", kLibcameraPrefix = "libcamera:", kReplayPrefix = "replay:";
+// The first camera libcamera lists (boards with one CSI camera).
+constexpr std::string_view kLibcameraAuto = "libcamera:auto";
 
 bool is_recording(const fs::path& dir) {
   std::error_code ec;
@@ -61,6 +63,11 @@ std::unique_ptr<FrameSource> open_camera(const std::string& id) {
   const auto rest = [&](std::string_view prefix) { return id.substr(prefix.size()); };
   try {
     if (starts(kV4l2Prefix)) return std::make_unique<V4l2Source>(rest(kV4l2Prefix));
+    if (id == kLibcameraAuto) {
+      const std::vector<CameraInfo> cameras = list_libcamera_cameras();
+      if (cameras.empty()) throw std::runtime_error("libcamera sees no camera");
+      return std::make_unique<LibcameraSource>(cameras.front().id.substr(kLibcameraPrefix.size()));
+    }
     if (starts(kLibcameraPrefix)) return std::make_unique<LibcameraSource>(rest(kLibcameraPrefix));
     if (starts(kReplayPrefix)) return std::make_unique<ReplaySource>(fs::path(rest(kReplayPrefix)), ReplayOptions{});
   } catch (const std::exception& e) {

@@ -98,6 +98,9 @@ TEST(CameraRegistry, UnknownBackendsAndMissingCamerasAreClearErrors) {
   EXPECT_NE(message("replay:/nonexistent/rec").find("replay:/nonexistent/rec"), std::string::npos);
   EXPECT_NE(message("v4l2:/nonexistent/video0").find("v4l2:/nonexistent/video0"), std::string::npos);
   EXPECT_NE(message("libcamera:no-such-camera").find("libcamera:no-such-camera"), std::string::npos);
+  if (list_cameras().empty()) {
+    EXPECT_NE(message("libcamera:auto").find("no camera"), std::string::npos) << message("libcamera:auto");
+  }
 }
 
 }  // namespace

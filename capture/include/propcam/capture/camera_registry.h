@@ -16,7 +16,8 @@ namespace propcam::capture {
 // in `recording_dirs`.
 std::vector<CameraInfo> list_cameras(const std::vector<std::string>& recording_dirs = {});
 
-// Opens the camera with this id. Throws std::runtime_error naming the id
+// Opens the camera with this id ("libcamera:auto": libcamera's first camera).
+// Throws std::runtime_error naming the id
 // and the reason when it cannot be opened.
 std::unique_ptr<FrameSource> open_camera(const std::string& id);
 
