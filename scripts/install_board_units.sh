@@ -26,6 +26,7 @@ install -D -m 0755 "$build/firmware/propcamd" "$root/usr/local/bin/propcamd"
 install -D -m 0644 "$here/board/systemd/propcamd.service" "$root/etc/systemd/system/propcamd.service"
 install -D -m 0644 "$here/board/systemd/propcam.service" "$root/etc/systemd/system/propcam.service"
 install -D -m 0644 "$here/board/systemd/propcam.sysusers.conf" "$root/etc/sysusers.d/propcam.conf"
+install -D -m 0644 "$here/board/systemd/propcam.tmpfiles.conf" "$root/etc/tmpfiles.d/propcam.conf"
 install -D -m 0644 "$here/board/udev/60-propcam.rules" "$root/etc/udev/rules.d/60-propcam.rules"
 install -D -m 0644 "$here/board/systemd/README.md" "$root/usr/local/share/propcam/board/systemd/README.md"
 for board in rpi usb-webcam; do

@@ -434,6 +434,7 @@ struct CaptureServer::Impl {
     }
     backoff = opt.reopen_backoff_min / 2;
     log("camera " + id + " open");
+    report_status(resume_pending ? "camera " + id + " is back" : "camera " + id + " open");
     if (resume_pending) {
       resume_pending = false;
       broadcast_event(proto::EventKind::Resumed, "camera " + id + " is back");
@@ -442,6 +443,7 @@ struct CaptureServer::Impl {
 
   void lose_device(const std::string& why) {
     log("camera lost: " + why);
+    report_status("camera lost: " + why);
     close_source();
     {
       std::lock_guard lock(mu);
@@ -517,20 +519,31 @@ struct CaptureServer::Impl {
     return !stopping;
   }
 
+  void report_status(const std::string& line) const {
+    if (opt.status) opt.status(line);
+  }
+
+  // A wait's end, capped so the heartbeat keeps beating while the thread idles.
+  std::chrono::steady_clock::time_point capped(std::chrono::steady_clock::time_point until) const {
+    if (!opt.heartbeat) return until;
+    return std::min(until, std::chrono::steady_clock::now() + opt.heartbeat_interval);
+  }
+
   void camera_loop() {
     backoff = opt.reopen_backoff_min / 2;
     next_open = std::chrono::steady_clock::now();
     try_reopen();  // before any command: those sent right after connecting find the camera open
     while (run_jobs_or_wait(std::nullopt)) {
+      if (opt.heartbeat) opt.heartbeat();
       const auto now = std::chrono::steady_clock::now();
       if (!source) {
         if (now >= next_open) try_reopen();
-        if (!source) run_jobs_or_wait(next_open);
+        if (!source) run_jobs_or_wait(capped(next_open));
         continue;
       }
       sync_streaming();
       if (source && source->running()) capture_once();
-      else run_jobs_or_wait(now + std::chrono::milliseconds(500));
+      else run_jobs_or_wait(capped(now + std::chrono::milliseconds(500)));
     }
     close_source();
   }

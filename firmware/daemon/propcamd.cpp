@@ -2,13 +2,23 @@
 // processes over a UNIX socket (capture/include/propcam/capture/capture_server.h).
 // Runs until SIGINT / SIGTERM; the camera is reopened by itself when it
 // comes back after being unplugged.
+//
+// Under systemd (board/systemd/propcamd.service, Type=notify) it tells the
+// service manager READY=1 once the socket listens, STATUS= on camera changes,
+// WATCHDOG=1 from the camera thread and STOPPING=1 on shutdown. Without
+// NOTIFY_SOCKET those calls do nothing.
 #include <signal.h>
+#include <systemd/sd-daemon.h>
 
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+#include <chrono>
+#include <cstdint>
 #include <cstring>
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -61,6 +71,23 @@ int main(int argc, char** argv) {
   options.stream.pixel_format = *pixel_format;
   options.log = [](const std::string& line) { spdlog::info("{}", line); };
   options.list_cameras = [recordings] { return list_cameras(recordings); };
+  options.status = [](const std::string& line) { sd_notifyf(0, "STATUS=%s", line.c_str()); };
+  // The watchdog is fed from the camera thread, at half the period systemd asked
+  // for, so a hung camera thread (not just a hung main thread) gets restarted.
+  // Its loop turns at least every quarter period, so pings are at most 3/4 apart.
+  std::uint64_t watchdog_usec = 0;
+  if (sd_watchdog_enabled(0, &watchdog_usec) > 0 && watchdog_usec > 0) {
+    const auto half = std::chrono::microseconds(watchdog_usec / 2);
+    options.heartbeat_interval = std::max(std::chrono::duration_cast<std::chrono::milliseconds>(half / 2),
+                                          std::chrono::milliseconds(1));
+    auto last = std::make_shared<std::chrono::steady_clock::time_point>();
+    options.heartbeat = [half, last] {
+      const auto now = std::chrono::steady_clock::now();
+      if (now - *last < half) return;  // the camera thread alone calls this: no lock
+      *last = now;
+      sd_notify(0, "WATCHDOG=1");
+    };
+  }
 
   // Signals go to sigwait below, not to the server's threads.
   sigset_t signals;
@@ -76,13 +103,16 @@ int main(int argc, char** argv) {
     CaptureServer server([](const std::string& id) { return open_camera(id); }, options);
     server.start();
     spdlog::info("propcamd serving {} on {}", options.camera_id, options.socket_path);
+    sd_notifyf(0, "READY=1\nSTATUS=serving %s on %s", options.camera_id.c_str(), options.socket_path.c_str());
     int signal_number = 0;
     while (sigwait(&signals, &signal_number) != 0) {
     }
     spdlog::info("propcamd stopping ({})", strsignal(signal_number));
+    sd_notify(0, "STOPPING=1");
     server.stop();
   } catch (const std::exception& e) {
     spdlog::error("propcamd: {}", e.what());
+    sd_notifyf(0, "STATUS=failed: %s", e.what());
     return 1;
   }
   return 0;

@@ -43,6 +43,14 @@ struct CaptureServerOptions {
   std::function<std::vector<CameraInfo>()> list_cameras;
   // Where the server reports what it does (clients dropped, camera lost, ...).
   std::function<void(const std::string&)> log;
+  // One-line camera state changes (open, lost, back), e.g. for a service
+  // manager's status line. Called on the camera thread.
+  std::function<void(const std::string&)> status;
+  // Called on the camera thread at least every heartbeat_interval while it
+  // runs (its waits are capped), so a watchdog fed from it notices a stuck
+  // camera thread. Unset: no cap.
+  std::function<void()> heartbeat;
+  std::chrono::milliseconds heartbeat_interval{1000};
 };
 
 class CaptureServer {
