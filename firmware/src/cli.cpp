@@ -310,7 +310,25 @@ int cmd_composite(const CompositeArgs& a) {
   return 0;
 }
 
-int cmd_props(bool json_out) {
+struct PropsArgs {
+  bool json_out = false;
+  std::string thumbnails_dir;  // empty: list only
+  int thumbnail_size = 256, thumbnail_spp = 64;
+};
+
+int cmd_props(const PropsArgs& a) {
+  const bool json_out = a.json_out;
+  if (!a.thumbnails_dir.empty()) {
+    std::filesystem::create_directories(a.thumbnails_dir);
+    for (const auto& p : render::prop_presets()) {
+      const auto start = std::chrono::steady_clock::now();
+      const cv::Mat thumbnail = render::render_prop_thumbnail(p.name, a.thumbnail_size, a.thumbnail_spp);
+      const std::string path = (std::filesystem::path(a.thumbnails_dir) / (p.name + ".png")).string();
+      capture::write_image(path, thumbnail);  // linear float: encoded to sRGB
+      std::fprintf(stderr, "wrote %s (%.2fs)\n", path.c_str(),
+                   std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+    }
+  }
   json list = json::array();
   for (const auto& p : render::prop_presets()) {
     const render::Mesh m = render::make_prop(p.name);
@@ -532,9 +550,14 @@ int run_cli(int argc, char** argv) {
       ->check(CLI::PositiveNumber);
   composite->add_flag("--no-cull", comp.no_cull, "Simulate everything: every tile, light and path (to measure what the plan saves)");
 
-  bool props_json = false;
-  auto* props = app.add_subcommand("props", "List the preset props");
-  props->add_flag("--json", props_json, "Machine-readable output");
+  PropsArgs props_args;
+  auto* props = app.add_subcommand("props", "List the preset props (and render their thumbnails)");
+  props->add_flag("--json", props_args.json_out, "Machine-readable output");
+  props->add_option("--thumbnails", props_args.thumbnails_dir, "Render every preset's thumbnail to DIR/<name>.png");
+  props->add_option("--thumbnail-size", props_args.thumbnail_size, "Thumbnail width and height in pixels")
+      ->check(CLI::Range(16, 4096));
+  props->add_option("--thumbnail-spp", props_args.thumbnail_spp, "Thumbnail samples per pixel")
+      ->check(CLI::Range(1, 65536));
 
   SynthArgs synth_args;
   auto* synth = app.add_subcommand("synth", "Render a synthetic room or street with exact ground truth (test fixtures)");
@@ -673,7 +696,7 @@ int run_cli(int argc, char** argv) {
   try {
     if (*infer) return cmd_infer(infer_args);
     if (*composite) return cmd_composite(comp);
-    if (*props) return cmd_props(props_json);
+    if (*props) return cmd_props(props_args);
     if (*synth) return cmd_synth(synth_args);
     if (*train_lights) return run_train_light_classifier_command(train_lights_args);
     if (*train_ibl) return run_train_ibl_ranker_command(train_ibl_args);

@@ -67,6 +67,9 @@ CompositeWorld build_composite_world(const inference::SceneModel& scene, const r
   w.prop_bounds = world.world_bounds(w.prop_index);
   w.build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   w.lights = scene.light_rig();
+  // A lamp prop lights the room: its light shines only in the with-prop world.
+  for (const render::SphereLight& lamp : render::prop_lights(prop, w.placed.world_from_prop))
+    w.lights.sphere_lights.push_back(lamp);
   return w;
 }
 
@@ -89,7 +92,11 @@ CompositeResult composite_prop(const cv::Mat& photo_linear, const inference::Sce
   session_settings.render = result.plan.settings;
   session_settings.render.light_layers = options.light_layers || settings.light_layers;
   session_settings.max_samples_per_pixel = settings.samples_per_pixel;
-  session_settings.cull_tiles = options.cull_tiles;
+  // Tile culling bounds where the prop's shadows and bounce light fall; a
+  // prop's own light reaches much further, so then every tile is rendered.
+  bool prop_emits = false;
+  for (const render::SphereLight& l : lights.sphere_lights) prop_emits = prop_emits || l.prop_only;
+  session_settings.cull_tiles = options.cull_tiles && !prop_emits;
   session_settings.target_relative_error = options.target_relative_error;
   render::RenderSession session(world, camera, result.plan.lights, photo_linear, w.prop_bounds, session_settings);
   while (!session.finished()) {

@@ -99,7 +99,8 @@ class PathIntegrator {
       // Lights met by this ray before the surface: seen directly by the camera,
       // or found by BSDF sampling (MIS-weighted against light sampling).
       bool light_in_front = false;
-      emitted_along(origin, direction, found ? hit.t : kInfinity, bounce == 0, previous_bsdf_pdf, light_in_front, add);
+      emitted_along(origin, direction, found ? hit.t : kInfinity, bounce == 0, previous_bsdf_pdf, with_props,
+                    light_in_front, result, add);
       if (!found) break;
       const SurfacePoint sp = scene_.surface(hit, origin, direction);
       if (sp.layer == Layer::Prop) {
@@ -176,7 +177,7 @@ class PathIntegrator {
   // a BSDF with density bsdf_pdf, weighted by the power heuristic.
   template <typename Add>
   void emitted_along(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction, float t_hit, bool camera,
-                     float bsdf_pdf, bool& light_in_front, const Add& add) const {
+                     float bsdf_pdf, bool with_props, bool& light_in_front, PathResult& result, const Add& add) const {
     const auto weight = [&](float light_pdf) { return camera ? 1.f : detail::power_heuristic(bsdf_pdf, light_pdf); };
     float t = 0.f, light_pdf = 0.f;
     int index = 0;
@@ -191,9 +192,11 @@ class PathIntegrator {
       ++index;
     }
     for (const SphereLight& light : lights_.sphere_lights) {
-      if (light.intersect(origin, direction, t, light_pdf) && in_front(t)) {
+      // A prop's lamp is absent from the world without props; its light is a change the prop makes.
+      if ((with_props || !light.prop_only) && light.intersect(origin, direction, t, light_pdf) && in_front(t)) {
         add(index, light.radiance * weight(light_pdf));
         light_in_front = true;
+        if (light.prop_only) result.touched_prop = true;
       }
       ++index;
     }
@@ -237,7 +240,13 @@ class PathIntegrator {
     }
     for (const SphereLight& light : lights_.sphere_lights) {
       const float u1 = rng.uniform(), u2 = rng.uniform();
-      add(index++, connect(light.sample(sp.position, u1, u2)));
+      if (light.prop_only && !with_props) {
+        ++index;
+        continue;
+      }
+      const Eigen::Vector3f arriving = connect(light.sample(sp.position, u1, u2));
+      if (light.prop_only && arriving.maxCoeff() > 0.f) result.touched_prop = true;
+      add(index++, arriving);
     }
     for (const SunLight& sun : lights_.suns) {
       const float u1 = rng.uniform(), u2 = rng.uniform();

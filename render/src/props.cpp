@@ -310,6 +310,25 @@ Material metal_material(std::string name, const Vector3f& reflectance, float rou
   return m;
 }
 
+Material glass_material(std::string name, float ior, float roughness) {
+  Material m;
+  m.type = Material::Type::Dielectric;
+  m.name = std::move(name);
+  m.albedo = Vector3f::Ones();
+  m.ior = ior;
+  m.roughness = roughness;
+  return m;
+}
+
+Material emissive_material(std::string name, const Vector3f& radiance) {
+  Material m;
+  m.type = Material::Type::Emissive;
+  m.name = std::move(name);
+  m.albedo = Vector3f::Zero();
+  m.emission = radiance;
+  return m;
+}
+
 // Collects parts with their materials, then puts the prop on the ground.
 class PropBuilder {
  public:
@@ -354,6 +373,13 @@ constexpr float kSpherePlinthHeight = 0.50f;
 constexpr float kMugHeight = 0.10f;
 constexpr float kTableHeight = 0.55f;
 constexpr float kCubeHeight = 0.20f;
+constexpr float kGlassHeight = 0.15f;
+constexpr float kLampHeight = 0.38f;
+// The lamp globe's radiance (W/sr/m^2, relative like the lights of a scene):
+// a warm ~2700 K white of luminance ~8, the synthetic rooms' ceiling panels'
+// order (6-10). Over the 7 cm globe that is a power of ~1/10 of a 0.6 m
+// panel's at the same radiance (pi L A), about a 40 W bulb against a panel fitting.
+const Vector3f kLampRadiance(10.f, 7.8f, 5.2f);
 
 // Ladder-back kitchen chair. Joints overlap (rails end inside the legs) so no
 // two parts share an edge and no gaps show.
@@ -502,6 +528,58 @@ Mesh make_cube() {
   return cube.finish(kCubeHeight);
 }
 
+// Clear tumbler: a solid of glass with 3 mm walls, a thick base and a rounded
+// rim, one closed outward-wound lathe (the dielectric's inside is the glass).
+Mesh make_glass() {
+  PropBuilder glass;
+  const int clear = glass.add_material(glass_material("clear_glass", 1.5f, 0.02f));
+  const float bottom_radius = 0.031f, top_radius = 0.038f, wall = 0.003f, base_top = 0.012f;
+  const float rim_y = kGlassHeight - wall / 2;
+  Profile profile;
+  profile.add(0.f, 0.f);
+  profile.add(bottom_radius - 0.002f, 0.f, /*crease=*/true);
+  profile.add_arc({bottom_radius - 0.002f, 0.002f}, 0.002f, -kPi / 2, 0.f, 4);  // softened foot edge
+  profile.add(top_radius, rim_y);
+  profile.add_arc({top_radius - wall / 2, rim_y}, wall / 2, 0.f, kPi, 8);
+  // The inside wall is parallel to the outside (same taper), down to the base.
+  const float taper = (top_radius - bottom_radius) / rim_y;
+  profile.add(top_radius - wall, rim_y);
+  profile.add(top_radius - wall - taper * (rim_y - base_top), base_top, /*crease=*/true);
+  profile.add(0.f, base_top);
+  glass.add(make_lathe(profile, 64), clear);
+  return glass.finish(kGlassHeight);
+}
+
+// Table lamp: brushed brass base and stem holding an opal glass globe that
+// glows (Emissive; prop_lights turns it into the light it casts).
+Mesh make_lamp() {
+  PropBuilder lamp;
+  const int brass = lamp.add_material(metal_material("brushed_brass", {0.80f, 0.60f, 0.30f}, 0.30f));
+  const int opal = lamp.add_material(emissive_material("opal_glass_globe", kLampRadiance));
+  Profile base;
+  base.add(0.f, 0.f);
+  base.add(0.07f, 0.f, /*crease=*/true);
+  base.add(0.07f, 0.012f, /*crease=*/true);
+  base.add(0.05f, 0.022f, /*crease=*/true);
+  base.add(0.f, 0.022f);
+  lamp.add(make_lathe(base, 48), brass);
+  const float globe_radius = 0.07f, globe_y = kLampHeight - globe_radius;
+  // Stem and socket run up into the globe (no gap at the joints).
+  const float stem_top = globe_y - globe_radius + 0.015f;
+  Profile stem;
+  stem.add(0.f, 0.015f);
+  stem.add(0.008f, 0.015f, /*crease=*/true);
+  stem.add(0.008f, stem_top - 0.03f, /*crease=*/true);
+  stem.add(0.018f, stem_top - 0.03f, /*crease=*/true);
+  stem.add(0.018f, stem_top, /*crease=*/true);
+  stem.add(0.f, stem_top);
+  lamp.add(make_lathe(stem, 24), brass);
+  Mesh globe = make_uv_sphere(globe_radius, 48, 24);
+  globe.transform(Eigen::Affine3f(Eigen::Translation3f(0.f, globe_y, 0.f)));
+  lamp.add(globe, opal);
+  return lamp.finish(kLampHeight);
+}
+
 struct PresetEntry {
   PropPreset preset;
   Mesh (*make)();
@@ -515,11 +593,44 @@ const std::vector<PresetEntry>& preset_entries() {
       {{"mug", "White stoneware mug, handle to the right", kMugHeight}, make_mug},
       {{"table", "Small oak side table with a shelf", kTableHeight}, make_table},
       {{"cube", "20 cm cube in 18% grey (scale and exposure reference)", kCubeHeight}, make_cube},
+      {{"glass", "Clear drinking glass (dielectric, IOR 1.5)", kGlassHeight}, make_glass},
+      {{"lamp", "Brass table lamp with a glowing opal globe (lights the scene)", kLampHeight}, make_lamp},
   };
   return entries;
 }
 
 }  // namespace
+
+std::vector<SphereLight> prop_lights(const Mesh& prop, const Eigen::Affine3f& world_from_prop) {
+  std::vector<SphereLight> lights;
+  for (int material = 0; material < static_cast<int>(prop.materials.size()); ++material) {
+    const Material& m = prop.materials[material];
+    if (m.type != Material::Type::Emissive || !(m.emission.maxCoeff() > 0.f)) continue;
+    double area = 0.0;
+    Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+    std::vector<Vector3f> vertices;
+    for (size_t t = 0; t < prop.triangles.size(); ++t) {
+      if (prop.material_ids[t] != material) continue;
+      const Vector3f a = world_from_prop * prop.positions[prop.triangles[t][0]];
+      const Vector3f b = world_from_prop * prop.positions[prop.triangles[t][1]];
+      const Vector3f c = world_from_prop * prop.positions[prop.triangles[t][2]];
+      const double triangle_area = 0.5 * (b - a).cross(c - a).norm();
+      area += triangle_area;
+      centroid += triangle_area * ((a + b + c) / 3.f).cast<double>();
+      vertices.insert(vertices.end(), {a, b, c});
+    }
+    if (!(area > 0.0)) continue;
+    SphereLight light;
+    light.center = (centroid / area).cast<float>();
+    float radius = 0.f;
+    for (const Vector3f& v : vertices) radius = std::max(radius, (v - light.center).norm());
+    light.radius = radius * 1.01f;  // just outside the triangles, which would block its shadow rays
+    light.radiance = m.emission * static_cast<float>(area / (4.0 * kPi * light.radius * light.radius));
+    light.prop_only = true;
+    lights.push_back(light);
+  }
+  return lights;
+}
 
 const std::vector<PropPreset>& prop_presets() {
   static const std::vector<PropPreset> presets = [] {

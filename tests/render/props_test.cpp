@@ -2,6 +2,12 @@
 
 #include <gtest/gtest.h>
 
+#include <opencv2/core.hpp>
+
+#include "propcam/render/mesh_shapes.h"
+#include "propcam/render/path_tracer.h"
+#include "propcam/render/scene.h"
+
 #include <array>
 #include <cmath>
 #include <map>
@@ -214,6 +220,109 @@ TEST(PropPresets, UnknownNameThrowsListingValidNames) {
     EXPECT_NE(message.find("teapot"), std::string::npos) << message;
     for (const auto& p : prop_presets()) EXPECT_NE(message.find(p.name), std::string::npos) << message;
   }
+}
+
+TEST(PropPresets, AtLeastEightIncludingGlassAndLamp) {
+  std::set<std::string> names;
+  for (const auto& p : prop_presets()) names.insert(p.name);
+  EXPECT_GE(prop_presets().size(), 8u);
+  EXPECT_TRUE(names.count("glass"));
+  EXPECT_TRUE(names.count("lamp"));
+}
+
+TEST(PropPresets, GlassIsAClosedOutwardWoundDielectric) {
+  const Mesh glass = make_prop("glass");
+  EXPECT_EQ(closedness_problem(glass), "");
+  EXPECT_GT(signed_volume(glass), 0.0);
+  for (const auto& m : glass.materials) {
+    EXPECT_EQ(m.type, Material::Type::Dielectric) << m.name;
+    EXPECT_FLOAT_EQ(m.ior, 1.5f);
+  }
+  const float height = glass.bounds().sizes().y();
+  EXPECT_GE(height, 0.15f - 1e-4f);
+  EXPECT_LE(height, 0.3f);
+}
+
+TEST(PropPresets, LampHasEmissiveTrianglesAndOneEnclosingLight) {
+  const Mesh lamp = make_prop("lamp");
+  int emissive = 0;
+  for (size_t t = 0; t < lamp.triangles.size(); ++t)
+    emissive += lamp.materials[lamp.material_ids[t]].type == Material::Type::Emissive;
+  EXPECT_GT(emissive, 100);
+  const Eigen::Affine3f xf = Eigen::Translation3f(1.f, 2.f, 3.f) * Eigen::Scaling(2.f);
+  const std::vector<SphereLight> lights = prop_lights(lamp, xf);
+  ASSERT_EQ(lights.size(), 1u);
+  const SphereLight& l = lights[0];
+  EXPECT_TRUE(l.prop_only);
+  EXPECT_NEAR(l.radius, 2.f * 0.07f, 0.01f);  // the 7 cm globe, scaled
+  EXPECT_NEAR(l.center.y(), 2.f + 2.f * (0.38f - 0.07f), 0.01f);
+  EXPECT_NEAR(l.center.x(), 1.f, 1e-3f);
+  for (size_t t = 0; t < lamp.triangles.size(); ++t)  // encloses the globe (never shadows its own light)
+    if (lamp.materials[lamp.material_ids[t]].type == Material::Type::Emissive) {
+      for (int k = 0; k < 3; ++k) EXPECT_LT((xf * lamp.positions[lamp.triangles[t][k]] - l.center).norm(), l.radius);
+    }
+  EXPECT_GT(l.radiance.minCoeff(), 0.f);
+  EXPECT_TRUE(prop_lights(make_prop("cube"), xf).empty());
+}
+
+TEST(PropThumbnails, EveryPresetRendersFiniteAndNotBlack) {
+  for (const auto& p : prop_presets()) {
+    const cv::Mat t = render_prop_thumbnail(p.name, 48, 4);
+    ASSERT_EQ(t.type(), CV_32FC3) << p.name;
+    ASSERT_EQ(t.cols, 48);
+    ASSERT_EQ(t.rows, 48);
+    EXPECT_TRUE(cv::checkRange(t)) << p.name;
+    const cv::Scalar mean = cv::mean(t);
+    EXPECT_GT(mean[0] + mean[1] + mean[2], 0.05) << p.name;
+  }
+}
+
+// The lamp next to a floor: its light reaches the floor in the world with the
+// prop (and in the differential change), never in the world without it.
+TEST(PropLights, TheLampLightsTheFloorOnlyWithTheProp) {
+  Mesh floor;
+  Material grey;
+  grey.name = "floor";
+  grey.albedo = Eigen::Vector3f::Constant(0.5f);
+  floor.materials.push_back(grey);
+  using V = Eigen::Vector3f;
+  add_quad(floor, V(-3, 0, 3), V(3, 0, 3), V(3, 0, -3), V(-3, 0, -3), 0, 1.f);
+  Scene scene;
+  scene.add_mesh(floor, Layer::Background);
+  const Mesh lamp = make_prop("lamp");
+  const Eigen::Affine3f at(Eigen::Translation3f(0.f, 0.f, 0.f));
+  scene.add_prop(lamp, at);
+  scene.commit();
+
+  // Looking straight down from 1.5 m: the lamp in the centre, floor around it.
+  PinholeCamera camera;
+  camera.width = camera.height = 48;
+  camera.fx = camera.fy = 40.0;
+  camera.cx = camera.cy = 23.5;
+  camera.center_world = Eigen::Vector3d(0, 1.5, 0);
+  camera.R_world_from_cam.col(0) = Eigen::Vector3d::UnitX();
+  camera.R_world_from_cam.col(1) = Eigen::Vector3d::UnitZ();
+  camera.R_world_from_cam.col(2) = -Eigen::Vector3d::UnitY();
+  LightRig rig;
+  rig.environment = std::make_shared<EnvironmentLight>(cv::Mat(8, 16, CV_32FC3, cv::Scalar::all(0.1)));
+  for (const SphereLight& l : prop_lights(lamp, at)) rig.sphere_lights.push_back(l);
+  RenderSettings settings;
+  settings.samples_per_pixel = 8;
+  const cv::Mat with = render_image(scene, camera, rig, settings);
+  const cv::Mat without = render_background_image(scene, camera, rig, settings);
+  const DifferentialRender diff = render_differential(scene, camera, rig, settings);
+  // A floor ring around the lamp, outside its 7 cm globe and base (about 3-9 px at this scale).
+  cv::Mat ring(48, 48, CV_8U, cv::Scalar(0));
+  for (int y = 0; y < 48; ++y)
+    for (int x = 0; x < 48; ++x) {
+      const double r = std::hypot(x - 23.5, y - 23.5);
+      if (r > 6.0 && r < 14.0) ring.at<uint8_t>(y, x) = 255;
+    }
+  const double lum_with = cv::mean(with, ring)[1], lum_without = cv::mean(without, ring)[1];
+  const double change = cv::mean(diff.change, ring)[1];
+  EXPECT_GT(lum_with, 1.5 * lum_without) << lum_with << " vs " << lum_without;
+  EXPECT_NEAR(lum_without, 0.5 * 0.1, 0.02);  // the sky alone: albedo x E / pi, E = pi * 0.1
+  EXPECT_GT(change, 0.5 * (lum_with - lum_without));
 }
 
 }  // namespace

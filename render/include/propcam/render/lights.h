@@ -71,6 +71,9 @@ struct SphereLight {
   Eigen::Vector3f center = Eigen::Vector3f::Zero();
   float radius = 0.1f;
   Eigen::Vector3f radiance = Eigen::Vector3f::Ones();
+  // A prop's own lamp (props.h prop_lights): it shines only in the world with
+  // props, so differential rendering adds its light to the photo.
+  bool prop_only = false;
 
   bool emits() const;
   LightSample sample(const Eigen::Vector3f& from, float u1, float u2) const;
