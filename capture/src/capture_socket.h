@@ -1,5 +1,6 @@
-// Internal to the daemon and its client: RAII for fds and mappings, memfds,
-// and packet send/receive over SOCK_SEQPACKET with an optional fd attached.
+// Internal to the capture module: RAII for fds and mappings and the
+// monotonic clock (the daemon, its client and the V4L2 backend), memfds, and
+// packet send/receive over SOCK_SEQPACKET with an optional fd attached.
 #pragma once
 
 #include <cstddef>

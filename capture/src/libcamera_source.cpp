@@ -509,10 +509,7 @@ Frame LibcameraSource::Impl::copy_frame(lc::Request& request, const lc::FrameBuf
     const std::uint8_t* base = mappings.at(plane.fd.get())->data() + offset;
     bytes.insert(bytes.end(), base, base + n);
   }
-  Frame frame;
-  frame.format = format;
-  frame.bytes_used = bytes.size();
-  frame.buffer = std::make_shared<VectorFrameBuffer>(std::move(bytes));
+  Frame frame = frame_from_bytes(format, std::move(bytes));
 
   const lc::ControlList& md = request.metadata();
   frame.metadata.sequence = buffer.metadata().sequence;

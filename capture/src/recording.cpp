@@ -428,12 +428,8 @@ std::vector<Frame> load_recording_frames(const Recording& recording) {
   std::vector<Frame> frames;
   frames.reserve(recording.frames.size());
   for (const RecordedFrame& entry : recording.frames) {
-    Frame frame;
-    frame.format = recording.format;
-    frame.bytes_used = entry.bytes_used;
-    frame.metadata = entry.metadata;
-    frame.buffer = std::make_shared<VectorFrameBuffer>(read_file(recording.dir / entry.file, entry.bytes_used));
-    frames.push_back(std::move(frame));
+    frames.push_back(
+        frame_from_bytes(recording.format, read_file(recording.dir / entry.file, entry.bytes_used), entry.metadata));
   }
   return frames;
 }

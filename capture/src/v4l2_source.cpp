@@ -5,6 +5,8 @@
 // DeviceLost decisions.
 #include "propcam/capture/v4l2_source.h"
 
+#include "capture_socket.h"
+
 #include <fcntl.h>
 #include <linux/videodev2.h>
 #include <poll.h>
@@ -66,34 +68,9 @@ int xioctl(int fd, unsigned long request, void* arg) {
   throw std::runtime_error("V4L2 " + path + ": " + step + ": " + errno_text(err));
 }
 
-std::int64_t monotonic_now_ns() {
-  timespec ts{};
-  ::clock_gettime(CLOCK_MONOTONIC, &ts);
-  return std::int64_t{ts.tv_sec} * 1'000'000'000 + ts.tv_nsec;
-}
-
-class Fd {
- public:
-  Fd() = default;
-  explicit Fd(int fd) : fd_(fd) {}
-  ~Fd() { reset(); }
-  Fd(Fd&& other) noexcept : fd_(std::exchange(other.fd_, -1)) {}
-  Fd& operator=(Fd&& other) noexcept {
-    if (this != &other) {
-      reset();
-      fd_ = std::exchange(other.fd_, -1);
-    }
-    return *this;
-  }
-  int get() const { return fd_; }
-  void reset() {
-    if (fd_ >= 0) ::close(fd_);
-    fd_ = -1;
-  }
-
- private:
-  int fd_ = -1;
-};
+// The module's fd owner and clock (capture_socket.h).
+using Fd = detail::UniqueFd;
+using detail::monotonic_ns;
 
 class Mapping {
  public:
@@ -566,7 +543,7 @@ std::optional<Frame> V4l2Source::Impl::dequeue_newest(bool& drained_all) {
   frame.bytes_used = used;
   frame.metadata.sequence = newest->sequence;
   frame.metadata.timestamp_ns = v4l2::buffer_timestamp_ns(
-      newest->flags, newest->timestamp.tv_sec, newest->timestamp.tv_usec, monotonic_now_ns());
+      newest->flags, newest->timestamp.tv_sec, newest->timestamp.tv_usec, monotonic_ns());
   requeue(*newest);  // a lost device shows on the next call
   return frame;
 }

@@ -41,14 +41,6 @@ FrameFormat format_of(PixelFormat pf, int w, int h, int stride = 0) {
   return f;
 }
 
-Frame frame_of(const FrameFormat& f, std::vector<std::uint8_t> bytes) {
-  Frame frame;
-  frame.format = f;
-  frame.bytes_used = bytes.size();
-  frame.buffer = std::make_shared<VectorFrameBuffer>(std::move(bytes));
-  return frame;
-}
-
 cv::Mat noise(int w, int h, int seed) {
   cv::Mat img(h, w, CV_8UC3);
   cv::RNG rng(seed);
@@ -79,7 +71,7 @@ TEST(CaptureHardCases, EveryTruncatedJpegIsRefused) {
   const auto bytes = bytes_of(good);
   ASSERT_EQ(outcome(good), "ok");
   for (std::size_t n = 0; n < bytes.size(); ++n) {
-    const std::string o = outcome(frame_of(good.format, {bytes.begin(), bytes.begin() + n}));
+    const std::string o = outcome(frame_from_bytes(good.format, {bytes.begin(), bytes.begin() + n}));
     EXPECT_NE(o, "ok") << "a JPEG cut to " << n << " of " << bytes.size() << " bytes decoded";
   }
 }
@@ -93,7 +85,7 @@ TEST(CaptureHardCases, CorruptJpegsNeverCrash) {
     auto broken = bytes;
     const int flips = 1 + trial % 8;
     for (int i = 0; i < flips; ++i) broken[rng.uniform(0, static_cast<int>(broken.size()))] ^= 1 << rng.uniform(0, 8);
-    refused += outcome(frame_of(good.format, broken)) != "ok";
+    refused += outcome(frame_from_bytes(good.format, broken)) != "ok";
   }
   // Flipped bits in entropy-coded noise often still decode (to a wrong
   // picture of the right size); those in markers and tables must be caught.
@@ -103,7 +95,7 @@ TEST(CaptureHardCases, CorruptJpegsNeverCrash) {
     std::vector<std::uint8_t> garbage(static_cast<std::size_t>(rng.uniform(1, 4000)));
     for (auto& b : garbage) b = static_cast<std::uint8_t>(rng.uniform(0, 256));
     if (trial % 2 && garbage.size() > 2) garbage[0] = 0xFF, garbage[1] = 0xD8;
-    EXPECT_NE(outcome(frame_of(good.format, garbage)), "ok");
+    EXPECT_NE(outcome(frame_from_bytes(good.format, garbage)), "ok");
   }
 }
 
@@ -122,7 +114,7 @@ TEST(CaptureHardCases, IncompressibleJpegsGrowTheirBuffer) {
 TEST(CaptureHardCases, JpegSizeMustMatchTheFormat) {
   const auto bytes = bytes_of(rgb8_to_frame(noise(64, 48, 4), format_of(PixelFormat::MJPEG, 64, 48)));
   for (auto [w, h] : {std::pair{32, 48}, std::pair{64, 24}, std::pair{128, 96}, std::pair{48, 64}}) {
-    const std::string o = outcome(frame_of(format_of(PixelFormat::MJPEG, w, h), bytes));
+    const std::string o = outcome(frame_from_bytes(format_of(PixelFormat::MJPEG, w, h), bytes));
     EXPECT_NE(o.find("the JPEG is 64x48"), std::string::npos) << o;
   }
 }
@@ -132,7 +124,7 @@ TEST(CaptureHardCases, JpegVariantsCamerasSend) {
   cv::GaussianBlur(rgb, rgb, cv::Size(0, 0), 2);  // smooth enough for 4:2:0 chroma
   cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
   const auto decode = [](const std::vector<std::uint8_t>& jpeg, int w, int h) {
-    return frame_to_rgb8(frame_of(format_of(PixelFormat::MJPEG, w, h), jpeg));
+    return frame_to_rgb8(frame_from_bytes(format_of(PixelFormat::MJPEG, w, h), jpeg));
   };
   // Greyscale JPEG: expanded to three equal channels.
   std::vector<std::uint8_t> jpeg;
@@ -179,7 +171,7 @@ TEST(CaptureHardCases, JpegVariantsCamerasSend) {
   std::vector<std::uint8_t> stray(full.begin(), full.begin() + 2);
   stray.insert(stray.end(), {0x00, 0x00, 0x00});
   stray.insert(stray.end(), full.begin() + 2, full.end());
-  EXPECT_EQ(outcome(frame_of(format_of(PixelFormat::MJPEG, 40, 30), stray)), "ok");
+  EXPECT_EQ(outcome(frame_from_bytes(format_of(PixelFormat::MJPEG, 40, 30), stray)), "ok");
 }
 
 // ---------------------------------------------------------------------------
@@ -193,7 +185,7 @@ TEST(CaptureHardCases, ImplausibleFormatsAreRefusedBeforeAnyAllocation) {
         format_of(PixelFormat::GREY, 8, 8, -8), format_of(PixelFormat::GREY, 8, 8, INT_MAX),
         format_of(PixelFormat::RGB24, 8, 8, 23), format_of(PixelFormat::MJPEG, 0, 0),
         format_of(static_cast<PixelFormat>(99), 8, 8)}) {
-    EXPECT_NE(outcome(frame_of(f, small)), "ok");
+    EXPECT_NE(outcome(frame_from_bytes(f, small)), "ok");
   }
   EXPECT_THROW(to_string(static_cast<PixelFormat>(99)), std::runtime_error);
   EXPECT_THROW(minimum_stride(PixelFormat::RGB24, -1), std::runtime_error);
@@ -216,9 +208,9 @@ TEST(CaptureHardCases, EveryShortBufferIsRefused) {
                          PixelFormat::NV12, PixelFormat::GREY}) {
     const FrameFormat f = format_of(pf, 6, 4, minimum_stride(pf, 6) + 2);
     const auto bytes = bytes_of(rgb8_to_frame(noise(6, 4, 7), f));
-    EXPECT_EQ(outcome(frame_of(f, bytes)), "ok");
+    EXPECT_EQ(outcome(frame_from_bytes(f, bytes)), "ok");
     for (std::size_t n = 0; n < bytes.size(); ++n) {
-      const std::string o = outcome(frame_of(f, {bytes.begin(), bytes.begin() + n}));
+      const std::string o = outcome(frame_from_bytes(f, {bytes.begin(), bytes.begin() + n}));
       EXPECT_NE(o.find("needs " + std::to_string(bytes.size()) + " bytes, has " + std::to_string(n)), std::string::npos)
           << o;
     }
@@ -226,7 +218,7 @@ TEST(CaptureHardCases, EveryShortBufferIsRefused) {
 }
 
 TEST(CaptureHardCases, BytesUsedBeyondTheBufferIsRefused) {
-  Frame f = frame_of(format_of(PixelFormat::MJPEG, 8, 8), std::vector<std::uint8_t>(100, 0));
+  Frame f = frame_from_bytes(format_of(PixelFormat::MJPEG, 8, 8), std::vector<std::uint8_t>(100, 0));
   f.bytes_used = 1'000'000;
   EXPECT_NE(outcome(f).find("exceeds its buffer"), std::string::npos);
 }

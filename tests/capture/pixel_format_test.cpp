@@ -28,20 +28,12 @@ FrameFormat format_of(PixelFormat pf, int w, int h, YcbcrEncoding e = YcbcrEncod
   return f;
 }
 
-Frame frame_of(const FrameFormat& f, std::vector<std::uint8_t> bytes) {
-  Frame frame;
-  frame.format = f;
-  frame.bytes_used = bytes.size();
-  frame.buffer = std::make_shared<VectorFrameBuffer>(std::move(bytes));
-  return frame;
-}
-
 // A YUYV frame, one pixel pair per sample, both pixels of a pair the same colour.
 Frame yuyv_pairs(const std::vector<Yuv>& samples, YcbcrEncoding e, QuantisationRange r) {
   std::vector<std::uint8_t> bytes;
   for (const Yuv& s : samples)
     for (int v : {s[0], s[1], s[0], s[2]}) bytes.push_back(static_cast<std::uint8_t>(v));
-  return frame_of(format_of(PixelFormat::YUYV, 2 * static_cast<int>(samples.size()), 1, e, r), bytes);
+  return frame_from_bytes(format_of(PixelFormat::YUYV, 2 * static_cast<int>(samples.size()), 1, e, r), bytes);
 }
 
 Rgb pixel(const cv::Mat& rgb, int x, int y = 0) {
@@ -273,9 +265,9 @@ TEST(PixelFormat, UyvyAndNv12LayoutsGiveTheSameColours) {
   const std::vector<std::uint8_t> yuyv = {16, 44, 60, 142, 120, 212, 235, 114, 30, 44, 90, 142, 150, 212, 200, 114};
   const std::vector<std::uint8_t> uyvy = {44, 16, 142, 60, 212, 120, 114, 235, 44, 30, 142, 90, 212, 150, 114, 200};
   const std::vector<std::uint8_t> nv12 = {16, 60, 120, 235, 30, 90, 150, 200, 44, 142, 212, 114};
-  const cv::Mat a = frame_to_rgb8(frame_of(format_of(PixelFormat::YUYV, 4, 2), yuyv));
-  const cv::Mat b = frame_to_rgb8(frame_of(format_of(PixelFormat::UYVY, 4, 2), uyvy));
-  const cv::Mat c = frame_to_rgb8(frame_of(format_of(PixelFormat::NV12, 4, 2), nv12));
+  const cv::Mat a = frame_to_rgb8(frame_from_bytes(format_of(PixelFormat::YUYV, 4, 2), yuyv));
+  const cv::Mat b = frame_to_rgb8(frame_from_bytes(format_of(PixelFormat::UYVY, 4, 2), uyvy));
+  const cv::Mat c = frame_to_rgb8(frame_from_bytes(format_of(PixelFormat::NV12, 4, 2), nv12));
   for (int row = 0; row < 2; ++row)
     for (int x = 0; x < 4; ++x) {
       const Rgb want = reference_rgb({y[row][x], u[x / 2], v[x / 2]}, YcbcrEncoding::Bt601, QuantisationRange::Limited);
@@ -286,16 +278,16 @@ TEST(PixelFormat, UyvyAndNv12LayoutsGiveTheSameColours) {
 }
 
 TEST(PixelFormat, RgbBgrAndGreyBytes) {
-  const cv::Mat rgb24 = frame_to_rgb8(frame_of(format_of(PixelFormat::RGB24, 2, 1), {10, 20, 30, 40, 50, 60}));
+  const cv::Mat rgb24 = frame_to_rgb8(frame_from_bytes(format_of(PixelFormat::RGB24, 2, 1), {10, 20, 30, 40, 50, 60}));
   EXPECT_EQ(pixel(rgb24, 0), (Rgb{10, 20, 30}));
   EXPECT_EQ(pixel(rgb24, 1), (Rgb{40, 50, 60}));
-  const cv::Mat bgr24 = frame_to_rgb8(frame_of(format_of(PixelFormat::BGR24, 2, 1), {10, 20, 30, 40, 50, 60}));
+  const cv::Mat bgr24 = frame_to_rgb8(frame_from_bytes(format_of(PixelFormat::BGR24, 2, 1), {10, 20, 30, 40, 50, 60}));
   EXPECT_EQ(pixel(bgr24, 0), (Rgb{30, 20, 10}));
   EXPECT_EQ(pixel(bgr24, 1), (Rgb{60, 50, 40}));
-  const cv::Mat grey_full = frame_to_rgb8(frame_of(
+  const cv::Mat grey_full = frame_to_rgb8(frame_from_bytes(
       format_of(PixelFormat::GREY, 3, 1, YcbcrEncoding::Bt601, QuantisationRange::Full), {0, 77, 255}));
   EXPECT_EQ(pixel(grey_full, 1), (Rgb{77, 77, 77}));
-  const cv::Mat grey_limited = frame_to_rgb8(frame_of(format_of(PixelFormat::GREY, 3, 1), {16, 126, 235}));
+  const cv::Mat grey_limited = frame_to_rgb8(frame_from_bytes(format_of(PixelFormat::GREY, 3, 1), {16, 126, 235}));
   EXPECT_EQ(pixel(grey_limited, 0), (Rgb{0, 0, 0}));
   EXPECT_EQ(pixel(grey_limited, 1), (Rgb{128, 128, 128}));  // (126 - 16) * 255 / 219 = 128.08
   EXPECT_EQ(pixel(grey_limited, 2), (Rgb{255, 255, 255}));
@@ -317,7 +309,7 @@ TEST(PixelFormat, PaddedStridesAreHonoured) {
     const int rows = pf == PixelFormat::NV12 ? 48 : 32;
     for (int r = 0; r < rows; ++r)
       for (int x = minimum_stride(pf, 64); x < padded.stride; ++x) bytes[r * padded.stride + x] = 0xA5;
-    b = frame_of(padded, bytes);
+    b = frame_from_bytes(padded, bytes);
     EXPECT_EQ(max_abs_diff(frame_to_rgb8(a), frame_to_rgb8(b)), 0) << to_string(pf);
   }
 }
@@ -416,33 +408,33 @@ TEST(PixelFormat, CorruptMjpegGivesClearErrors) {
   };
   // Truncated halfway: libjpeg would pad with grey; we refuse.
   const std::string truncated =
-      error_of(frame_of(good.format, std::vector<std::uint8_t>(bytes.begin(), bytes.begin() + bytes.size() / 2)));
+      error_of(frame_from_bytes(good.format, std::vector<std::uint8_t>(bytes.begin(), bytes.begin() + bytes.size() / 2)));
   EXPECT_NE(truncated.find("cannot decode the JPEG"), std::string::npos) << truncated;
   EXPECT_NE(truncated.find("MJPEG 64x48"), std::string::npos) << truncated;
-  const std::string garbage = error_of(frame_of(good.format, std::vector<std::uint8_t>(1000, 0x42)));
+  const std::string garbage = error_of(frame_from_bytes(good.format, std::vector<std::uint8_t>(1000, 0x42)));
   EXPECT_NE(garbage.find("Not a JPEG file"), std::string::npos) << garbage;
-  const std::string wrong_size = error_of(frame_of(format_of(PixelFormat::MJPEG, 640, 480), bytes));
+  const std::string wrong_size = error_of(frame_from_bytes(format_of(PixelFormat::MJPEG, 640, 480), bytes));
   EXPECT_NE(wrong_size.find("the JPEG is 64x48, the frame format says 640x480"), std::string::npos) << wrong_size;
-  EXPECT_NE(error_of(frame_of(good.format, {})).find("empty JPEG"), std::string::npos);
+  EXPECT_NE(error_of(frame_from_bytes(good.format, {})).find("empty JPEG"), std::string::npos);
 }
 
 TEST(PixelFormat, ShortOrMissingBuffersAreErrors) {
   const FrameFormat f = format_of(PixelFormat::YUYV, 640, 480);
-  EXPECT_THROW(frame_to_rgb8(frame_of(f, std::vector<std::uint8_t>(640 * 480 * 2 - 1))), std::runtime_error);
+  EXPECT_THROW(frame_to_rgb8(frame_from_bytes(f, std::vector<std::uint8_t>(640 * 480 * 2 - 1))), std::runtime_error);
   try {
-    frame_to_rgb8(frame_of(f, std::vector<std::uint8_t>(1000)));
+    frame_to_rgb8(frame_from_bytes(f, std::vector<std::uint8_t>(1000)));
     FAIL() << "a short buffer was converted";
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("needs 614400 bytes, has 1000"), std::string::npos) << e.what();
   }
-  Frame lying = frame_of(f, std::vector<std::uint8_t>(640 * 480 * 2));
+  Frame lying = frame_from_bytes(f, std::vector<std::uint8_t>(640 * 480 * 2));
   lying.bytes_used = 640 * 480 * 2 + 1;
   EXPECT_THROW(frame_to_rgb8(lying), std::runtime_error);
   Frame empty;
   empty.format = f;
   EXPECT_THROW(frame_to_rgb8(empty), std::runtime_error);
   // A longer buffer (a driver's whole sizeimage) is fine.
-  EXPECT_NO_THROW(frame_to_rgb8(frame_of(f, std::vector<std::uint8_t>(640 * 480 * 2 + 4096, 128))));
+  EXPECT_NO_THROW(frame_to_rgb8(frame_from_bytes(f, std::vector<std::uint8_t>(640 * 480 * 2 + 4096, 128))));
 }
 
 TEST(PixelFormat, RgbToFrameChecksItsInput) {
@@ -453,7 +445,7 @@ TEST(PixelFormat, RgbToFrameChecksItsInput) {
 }
 
 TEST(PixelFormat, LinearIsTheSrgbCurveUndone) {
-  const cv::Mat lin = frame_to_linear(frame_of(format_of(PixelFormat::RGB24, 2, 1), {255, 128, 0, 10, 10, 10}));
+  const cv::Mat lin = frame_to_linear(frame_from_bytes(format_of(PixelFormat::RGB24, 2, 1), {255, 128, 0, 10, 10, 10}));
   ASSERT_EQ(lin.type(), CV_32FC3);
   const cv::Vec3f a = lin.at<cv::Vec3f>(0, 0), b = lin.at<cv::Vec3f>(0, 1);
   EXPECT_FLOAT_EQ(a[0], 1.f);

@@ -11,6 +11,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace propcam::capture {
@@ -104,5 +105,16 @@ struct Frame {
     return buffer->bytes().first(std::min(bytes_used, buffer->bytes().size()));
   }
 };
+
+// A frame that owns `bytes`, all of them used.
+inline Frame frame_from_bytes(const FrameFormat& format, std::vector<std::uint8_t> bytes,
+                              const FrameMetadata& metadata = {}) {
+  Frame frame;
+  frame.format = format;
+  frame.bytes_used = bytes.size();
+  frame.buffer = std::make_shared<VectorFrameBuffer>(std::move(bytes));
+  frame.metadata = metadata;
+  return frame;
+}
 
 }  // namespace propcam::capture
