@@ -174,5 +174,73 @@ TEST(ButtonsHardCases, LargeScriptWithMaximumBouncePlaysThrough) {
   EXPECT_EQ(releases, 2000u);
 }
 
+TEST(ButtonsHardCases, AButtonHeldAcrossAnAwaitKeepsRepeatingAndIsReleasedAfter) {
+  ManualButtonClock clock(0);
+  ScriptButtonInput input(ButtonScript::parse("down NEXT\nawait placing 2s\n+50ms up NEXT\n"), clock);
+  std::vector<ButtonEvent> events;
+  for (int i = 0; i < 8; ++i) events.push_back(input.next_event(std::chrono::hours(1)).value());
+  // Press at 20 ms, then repeats at 420, 520, ... 1020 while the script waits.
+  EXPECT_EQ(events[0], (ButtonEvent{Button::Next, Kind::Press, ms(20)}));
+  EXPECT_EQ(events[7], (ButtonEvent{Button::Next, Kind::Repeat, ms(1020)}));
+  EXPECT_EQ(input.awaiting(), "placing");
+  clock.set(ms(1500));
+  input.notify_state("placing");
+  for (int i = 0; i < 1000 && !input.end_of_script(); ++i) {
+    if (auto e = input.next_event(std::chrono::hours(1))) events.push_back(*e);
+  }
+  EXPECT_EQ(events.back(), (ButtonEvent{Button::Next, Kind::Release, ms(1570)}));
+  EXPECT_EQ(events.end()[-2], (ButtonEvent{Button::Next, Kind::Repeat, ms(1520)}));
+  EXPECT_TRUE(time_ordered(events));
+  EXPECT_TRUE(input.end_of_script());
+}
+
+TEST(ButtonsHardCases, ChainedAwaitsForTheSameStatePassTogether) {
+  // Only the latest report counts, so several awaits for the state already
+  // reported all pass at once, and the time origin stays at the first one.
+  ManualButtonClock clock(ms(100));
+  ScriptButtonInput input(
+      ButtonScript::parse("await placing\nawait PLACING\nawait placing 0s\n+10ms press OK\n"), clock);
+  input.notify_state("placing");
+  EXPECT_EQ(input.next_event(std::chrono::hours(1)), (ButtonEvent{Button::Ok, Kind::Press, ms(130)}));
+  EXPECT_TRUE(input.next_event(std::chrono::hours(1)));
+  EXPECT_TRUE(input.end_of_script());
+}
+
+TEST(ButtonsHardCases, AZeroTimeoutAwaitFailsAtOnceUnlessAlreadyInState) {
+  ManualButtonClock clock(0);
+  ScriptButtonInput input(ButtonScript::parse("await placing 0s\n"), clock);
+  EXPECT_THROW(input.next_event(std::chrono::milliseconds(0)), ButtonScriptError);
+  // The error repeats until the state is reported; then the await passes.
+  EXPECT_THROW(input.next_event(std::chrono::milliseconds(0)), ButtonScriptError);
+  input.notify_state("placing");
+  EXPECT_FALSE(input.next_event(std::chrono::milliseconds(0)));
+  EXPECT_TRUE(input.end_of_script());
+}
+
+TEST(ButtonsHardCases, AwaitsCanBeManyAndEachSegmentMayRunForADay) {
+  std::string text;
+  for (int i = 0; i < 1000; ++i) text += "at 82800s press OK\nawait s" + std::to_string(i) + " 86400s\n";
+  const auto script = ButtonScript::parse(text);
+  ASSERT_EQ(script.awaits.size(), 1000u);
+  ManualButtonClock clock(0);
+  ScriptButtonInput input(script, clock);
+  std::size_t presses = 0;
+  for (int i = 0; i < 100'000 && !input.end_of_script(); ++i) {
+    if (auto state = input.awaiting()) input.notify_state(*state);
+    if (auto e = input.next_event(std::chrono::hours(48))) presses += e->kind == Kind::Press;
+  }
+  EXPECT_TRUE(input.end_of_script());
+  EXPECT_EQ(presses, 1000u);
+  EXPECT_THROW(ButtonScript::parse("await x\nat 82800s hold OK 7200s\n"), ButtonScriptError);
+}
+
+TEST(ButtonsHardCases, StateNamesAreWordsNotGarbage) {
+  for (const char* bad : {"await 'placing'", "await placing\x7f", "await #placing", "await +1s",
+                          "await _x", "await placing 1s 2s"}) {
+    EXPECT_THROW(ButtonScript::parse(bad), ButtonScriptError) << bad;
+  }
+  EXPECT_EQ(ButtonScript::parse("AWAIT Placing/Tier_2-b 1MS").awaits.at(0).state, "Placing/Tier_2-b");
+}
+
 }  // namespace
 }  // namespace propcam::ui_fb

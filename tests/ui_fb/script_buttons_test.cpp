@@ -147,6 +147,15 @@ TEST(ButtonScript, ErrorsNameTheSourceAndLine) {
       {"bounce 2 0ms\n", 1, "bounce interval must be positive"},
       {"at 82800s hold OK 7200s\n", 1, "runs past 24h"},
       {"press OK\x01\n", 1, "control character 0x01"},
+      {"press OK\nawait\n", 2, "missing state after 'await'"},
+      {"await placing 10\n", 1, "'10' is not a time"},
+      {"await placing -1s\n", 1, "negative time"},
+      {"await placing 25h\n", 1, "is not a time"},
+      {"await placing 90000s\n", 1, "longer than 24h"},
+      {"await 10s\n", 1, "'10s' is not a state name"},
+      {"await placing 10s extra\n", 1, "unexpected 'extra'"},
+      {"at 2s press OK\nat 1s await placing\n", 2, "goes back in time"},
+      {"await placing\nup OK\n", 2, "OK is released but is not down"},
   };
   for (const Case& c : cases) {
     const auto [line, what] = error_of(c.text);
@@ -240,6 +249,161 @@ TEST(ScriptButtonInput, ManualClockSteppedByTheTest) {
   EXPECT_EQ(clock.now_ns(), ms(6120));
   EXPECT_TRUE(input.end_of_script());
   EXPECT_EQ(input.name(), "script <script>");
+}
+
+// --- await ---------------------------------------------------------------------
+
+TEST(ButtonScript, AwaitSplitsTheScriptIntoSegmentsWithTheirOwnOrigins) {
+  const auto s = ButtonScript::parse(
+      "at 1s press SHOOT\n"
+      "+50ms await Placing 30s   # analysis\n"
+      "+200ms press OK\n"
+      "at 1s press NEXT\n"
+      "await adjusting\n");
+  EXPECT_EQ(edges_of(s), (std::vector<E>{{Button::Shoot, true, ms(1000)},
+                                         {Button::Shoot, false, ms(1100)},
+                                         {Button::Ok, true, ms(200)},
+                                         {Button::Ok, false, ms(300)},
+                                         {Button::Next, true, ms(1000)},
+                                         {Button::Next, false, ms(1100)}}));
+  EXPECT_EQ(s.edges[1].segment, 0u);
+  EXPECT_EQ(s.edges[2].segment, 1u);
+  ASSERT_EQ(s.awaits.size(), 2u);
+  EXPECT_EQ(s.awaits[0].state, "Placing");
+  EXPECT_EQ(s.awaits[0].start_ns, ms(1150));
+  EXPECT_EQ(s.awaits[0].timeout_ns, ms(30'000));
+  EXPECT_EQ(s.awaits[0].line, 2);
+  EXPECT_EQ(s.awaits[1].start_ns, ms(1100));  // after NEXT's release
+  EXPECT_EQ(s.awaits[1].timeout_ns, ms(600'000));
+  EXPECT_EQ(s.end_ns, 0);  // the last segment is empty
+}
+
+TEST(ButtonScript, AnAwaitStartsOnlyAfterTheBouncesBeforeIt) {
+  const auto s = ButtonScript::parse("bounce 3 10ms\npress OK 100ms\nawait placing\n");
+  EXPECT_EQ(s.awaits.at(0).start_ns, ms(160));  // the release at 100 bounces until 160
+}
+
+TEST(ScriptButtonInput, AwaitPassesWhenNotifiedAndTimesTheRestFromThatMoment) {
+  ManualButtonClock clock(ms(1000));
+  ScriptButtonInput input(ButtonScript::parse("press SHOOT\n"
+                                              "await placing\n"
+                                              "+200ms press OK\n"
+                                              "at 1s press NEXT\n"),
+                          clock);
+  EXPECT_EQ(input.next_event(std::chrono::hours(1)), (ButtonEvent{Button::Shoot, Kind::Press, ms(1020)}));
+  // The release is delivered although the script now waits.
+  EXPECT_EQ(input.next_event(std::chrono::hours(1)), (ButtonEvent{Button::Shoot, Kind::Release, ms(1120)}));
+  EXPECT_FALSE(input.next_event(std::chrono::seconds(5)));
+  EXPECT_EQ(clock.now_ns(), ms(6120));  // waited exactly the timeout given
+  EXPECT_EQ(input.awaiting(), "placing");
+  EXPECT_FALSE(input.end_of_script());
+  input.notify_state("analysing");
+  EXPECT_FALSE(input.next_event(std::chrono::milliseconds(0)));
+  clock.set(ms(7000));
+  input.notify_state("PLACING");
+  EXPECT_EQ(input.next_event(std::chrono::hours(1)), (ButtonEvent{Button::Ok, Kind::Press, ms(7220)}));
+  EXPECT_FALSE(input.awaiting());
+  EXPECT_EQ(input.next_event(std::chrono::hours(1)), (ButtonEvent{Button::Ok, Kind::Release, ms(7320)}));
+  // "at 1s" after the await counts from the notify too.
+  EXPECT_EQ(input.next_event(std::chrono::hours(1)), (ButtonEvent{Button::Next, Kind::Press, ms(8020)}));
+  EXPECT_EQ(input.next_event(std::chrono::hours(1)), (ButtonEvent{Button::Next, Kind::Release, ms(8120)}));
+  EXPECT_TRUE(input.end_of_script());
+}
+
+TEST(ScriptButtonInput, AwaitForTheStateAlreadyReportedPassesAtOnce) {
+  ManualButtonClock clock(0);
+  ScriptButtonInput input(ButtonScript::parse("at 1s await viewfinder\n+100ms press BACK\n"), clock);
+  input.notify_state("Viewfinder");
+  // The script reaches the await at 1s; the steps after it count from then.
+  EXPECT_EQ(input.next_event(std::chrono::hours(1)), (ButtonEvent{Button::Back, Kind::Press, ms(1120)}));
+  EXPECT_FALSE(input.awaiting());
+  // Only the most recent report counts.
+  ScriptButtonInput second(ButtonScript::parse("await placing\npress OK\n"), clock);
+  second.notify_state("placing");
+  second.notify_state("rendering");
+  EXPECT_FALSE(second.next_event(std::chrono::milliseconds(10)));
+  EXPECT_EQ(second.awaiting(), "placing");
+}
+
+TEST(ScriptButtonInput, AwaitTimeoutIsAnErrorNamingTheLineAndTheLastState) {
+  ManualButtonClock clock(ms(500));
+  ScriptButtonInput input(ButtonScript::parse("press OK\n\nawait placing\n", "tour.txt"), clock);
+  input.notify_state("analysing");
+  EXPECT_TRUE(input.next_event(std::chrono::hours(1)));  // OK press
+  EXPECT_TRUE(input.next_event(std::chrono::hours(1)));  // OK release
+  try {
+    input.next_event(std::chrono::hours(1));
+    ADD_FAILURE() << "no timeout";
+  } catch (const ButtonScriptError& e) {
+    EXPECT_EQ(e.line(), 3);
+    EXPECT_STREQ(e.what(), "tour.txt:3: timed out after 600s waiting for state placing "
+                           "(last state: analysing)");
+  }
+  // The await began at the release (600 ms) and lasted 600 s on the manual clock.
+  EXPECT_EQ(clock.now_ns(), ms(600 + 600'000));
+  EXPECT_FALSE(input.end_of_script());
+}
+
+TEST(ScriptButtonInput, AwaitTimeoutWithNothingReportedAndACustomTimeout) {
+  ManualButtonClock clock(0);
+  ScriptButtonInput input(ButtonScript::parse("await adjusting 1.5s\n"), clock);
+  EXPECT_FALSE(input.next_event(std::chrono::milliseconds(1499)));
+  EXPECT_EQ(input.awaiting(), "adjusting");
+  try {
+    input.next_event(std::chrono::milliseconds(1));
+    ADD_FAILURE() << "no timeout";
+  } catch (const ButtonScriptError& e) {
+    EXPECT_STREQ(e.what(), "<script>:1: timed out after 1500ms waiting for state adjusting "
+                           "(last state: none reported)");
+  }
+}
+
+TEST(ScriptButtonInput, ALastAwaitEndsTheScriptOnlyWhenSatisfied) {
+  ManualButtonClock clock(0);
+  ScriptButtonInput input(ButtonScript::parse("press OK\nawait exporting\n"), clock);
+  for (int i = 0; i < 2; ++i) EXPECT_TRUE(input.next_event(std::chrono::hours(1)));
+  EXPECT_FALSE(input.next_event(std::chrono::seconds(1)));
+  EXPECT_FALSE(input.end_of_script());
+  input.notify_state("exporting");
+  EXPECT_FALSE(input.next_event(std::chrono::milliseconds(0)));
+  EXPECT_TRUE(input.end_of_script());
+  EXPECT_FALSE(input.awaiting());
+}
+
+TEST(ScriptButtonInput, AwaitStaysResponsiveOnTheRealClock) {
+  ScriptButtonInput input(ButtonScript::parse("await placing 10s\npress NEXT 30ms\n"));
+  const auto before = std::chrono::steady_clock::now();
+  EXPECT_FALSE(input.next_event(std::chrono::milliseconds(30)));
+  EXPECT_LT(std::chrono::steady_clock::now() - before, std::chrono::seconds(1));
+  input.notify_state("placing");
+  std::vector<ButtonEvent::Kind> kinds;
+  for (int i = 0; i < 20 && !input.end_of_script(); ++i) {
+    if (auto e = input.next_event(std::chrono::milliseconds(100))) kinds.push_back(e->kind);
+  }
+  EXPECT_EQ(kinds, (std::vector{Kind::Press, Kind::Release}));
+}
+
+TEST(ScriptButtonInput, TheReadmeAwaitExamplePlays) {
+  ManualButtonClock clock(0);
+  ScriptButtonInput input(ButtonScript::parse("# place a prop, render, export\n"
+                                              "at 0.5s press SHOOT\n"
+                                              "await placing\n"
+                                              "+200ms press OK\n"
+                                              "+300ms press OK\n"
+                                              "+300ms press OK        # render\n"
+                                              "await adjusting 1200s  # rendering converged\n"
+                                              "+1s hold OK 1200ms     # long press: export\n"
+                                              "bounce 3 2ms\n"
+                                              "+500ms press BACK\n"),
+                          clock);
+  int presses = 0;
+  for (int i = 0; i < 100 && !input.end_of_script(); ++i) {
+    if (input.awaiting() == "placing") input.notify_state("placing");
+    if (input.awaiting() == "adjusting" && presses == 4) input.notify_state("adjusting");
+    if (auto e = input.next_event(std::chrono::seconds(1))) presses += e->kind == Kind::Press;
+  }
+  EXPECT_TRUE(input.end_of_script());
+  EXPECT_EQ(presses, 6);
 }
 
 TEST(ScriptButtonInput, PlaysOnTheRealClock) {

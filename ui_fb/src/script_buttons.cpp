@@ -1,5 +1,6 @@
 // The script backend: parses the timed-press grammar documented in buttons.h into
-// raw edges and plays them through the debouncer against a ButtonClock.
+// raw edges in segments (split by awaits) and plays them through the debouncer
+// against a ButtonClock, pausing at each await until the appliance reports its state.
 #include <time.h>
 
 #include <algorithm>
@@ -19,6 +20,7 @@ namespace {
 constexpr std::size_t kMaxLineBytes = 4096;
 constexpr std::int64_t kMaxScriptNs = 24LL * 3600 * 1'000'000'000;  // 24 h
 constexpr std::int64_t kDefaultTapNs = 100'000'000;
+constexpr std::int64_t kDefaultAwaitTimeoutNs = 600LL * 1'000'000'000;  // 10 min
 constexpr int kMaxBounces = 100;
 constexpr std::uintmax_t kMaxScriptBytes = 16u << 20;
 
@@ -52,11 +54,32 @@ std::vector<std::string_view> split_words(std::string_view line) {
 
 // One edge before bounce expansion, with the bounce setting in force on its line.
 struct PendingEdge {
-  RawEdge edge;
+  RawEdge edge;  // time_ns relative to its segment's origin
   int line;
+  std::size_t segment;
   int bounces;
   std::int64_t bounce_interval_ns;
 };
+
+// A state name: a letter, then letters, digits, '_', '-' or '/' (so "10s" is not one).
+bool is_state_word(std::string_view word) {
+  auto letter = [](char c) { return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z'); };
+  if (word.empty() || !letter(word[0])) return false;
+  return std::all_of(word.begin(), word.end(), [&](char c) {
+    return letter(c) || (c >= '0' && c <= '9') || c == '_' || c == '-' || c == '/';
+  });
+}
+
+// "600s", "1500ms", "0.25ms": the shortest exact spelling in the script's units.
+std::string duration_text(std::int64_t ns) {
+  constexpr std::int64_t kNsPerMs = 1'000'000;
+  constexpr std::int64_t kNsPerS = 1'000'000'000;
+  if (ns % kNsPerS == 0) return std::to_string(ns / kNsPerS) + "s";
+  if (ns % kNsPerMs == 0) return std::to_string(ns / kNsPerMs) + "ms";
+  char text[32];
+  std::snprintf(text, sizeof text, "%.6gms", static_cast<double>(ns) / kNsPerMs);
+  return text;
+}
 
 class Parser {
  public:
@@ -74,8 +97,11 @@ class Parser {
   std::string_view take(const std::vector<std::string_view>& words, std::size_t& i,
                         const char* what) const;
   void add_edge(Button b, bool pressed, std::int64_t t);
+  void parse_await(const std::vector<std::string_view>& words, std::size_t& i, std::int64_t start);
   std::int64_t checked_sum(std::int64_t a, std::int64_t b) const;
   void check_line_bytes(std::string_view line) const;
+  void check_alternation() const;
+  void expand_bounces(ButtonScript& script) const;
 
   std::string source_;
   int line_ = 0;
@@ -84,6 +110,7 @@ class Parser {
   int bounces_ = 0;
   std::int64_t bounce_interval_ns_ = 1'000'000;
   std::vector<PendingEdge> edges_;
+  std::vector<ButtonScript::Await> awaits_;  // awaits_[k] ends segment k
 };
 
 void Parser::check_line_bytes(std::string_view line) const {
@@ -141,7 +168,24 @@ std::int64_t Parser::checked_sum(std::int64_t a, std::int64_t b) const {
 }
 
 void Parser::add_edge(Button b, bool pressed, std::int64_t t) {
-  edges_.push_back(PendingEdge{RawEdge{b, pressed, t}, line_, bounces_, bounce_interval_ns_});
+  edges_.push_back(
+      PendingEdge{RawEdge{b, pressed, t}, line_, awaits_.size(), bounces_, bounce_interval_ns_});
+}
+
+// Ends the current segment; the next one is timed from the moment the state is reported.
+void Parser::parse_await(const std::vector<std::string_view>& words, std::size_t& i,
+                         std::int64_t start) {
+  const std::string_view state = take(words, i, "state after 'await' (e.g. await placing)");
+  if (!is_state_word(state)) {
+    fail(quoted(state) + " is not a state name (expected a word such as placing, then an "
+         "optional timeout)");
+  }
+  std::int64_t timeout = kDefaultAwaitTimeoutNs;
+  if (i < words.size()) timeout = parse_time(take(words, i, "await timeout"));
+  // start_ns is raised to the segment's last edge in finish(), once bounces are known.
+  awaits_.push_back(ButtonScript::Await{std::string(state), start, timeout, line_});
+  cursor_ns_ = 0;
+  last_start_ns_ = 0;
 }
 
 void Parser::parse_line(std::string_view line, int number) {
@@ -168,7 +212,8 @@ void Parser::parse_line(std::string_view line, int number) {
   }
   last_start_ns_ = start;
 
-  const std::string action = lower(take(words, i, "action (press, hold, down, up, wait, bounce)"));
+  const std::string action =
+      lower(take(words, i, "action (press, hold, down, up, wait, bounce, await)"));
   if (action == "press" || action == "hold") {
     const Button b = parse_button(take(words, i, "button"));
     std::int64_t duration = kDefaultTapNs;
@@ -197,60 +242,92 @@ void Parser::parse_line(std::string_view line, int number) {
     bounces_ = n;
     bounce_interval_ns_ = interval;
     cursor_ns_ = start;
+  } else if (action == "await") {
+    parse_await(words, i, start);
   } else {
     fail("unknown action " + quoted(words[i - 1]) +
-         " (expected press, hold, down, up, wait or bounce)");
+         " (expected press, hold, down, up, wait, bounce or await)");
   }
   if (i < words.size()) fail("unexpected " + quoted(words[i]));
 }
 
-ButtonScript Parser::finish() {
-  std::stable_sort(edges_.begin(), edges_.end(), [](const PendingEdge& a, const PendingEdge& b) {
-    return a.edge.time_ns < b.edge.time_ns;
-  });
-  // Each button must alternate down / up, and end up.
-  std::array<std::vector<const PendingEdge*>, kButtonCount> per_button;
+// Each button must alternate down / up across the whole script, and end up.
+void Parser::check_alternation() const {
+  std::array<const PendingEdge*, kButtonCount> last_of{};
   for (const PendingEdge& e : edges_) {
-    auto& list = per_button[static_cast<std::size_t>(e.edge.button)];
-    const bool down = !list.empty() && list.back()->edge.pressed;
+    const PendingEdge*& last = last_of[static_cast<std::size_t>(e.edge.button)];
+    const bool down = last != nullptr && last->edge.pressed;
     if (e.edge.pressed == down) {
-      line_ = e.line;
       const std::string name(button_name(e.edge.button));
-      fail(down ? name + " is already down (pressed on line " + std::to_string(list.back()->line) + ")"
-                : name + " is released but is not down");
+      throw ButtonScriptError(
+          source_, e.line,
+          down ? name + " is already down (pressed on line " + std::to_string(last->line) + ")"
+               : name + " is released but is not down");
     }
-    list.push_back(&e);
+    last = &e;
   }
-  ButtonScript script;
-  script.source = source_;
-  script.end_ns = cursor_ns_;
-  for (const auto& list : per_button) {
-    if (!list.empty() && list.back()->edge.pressed) {
-      line_ = list.back()->line;
-      fail(std::string(button_name(list.back()->edge.button)) +
-           " is still down at the end of the script");
+  for (const PendingEdge* last : last_of) {
+    if (last != nullptr && last->edge.pressed) {
+      throw ButtonScriptError(source_, last->line,
+                              std::string(button_name(last->edge.button)) +
+                                  " is still down at the end of the script");
     }
+  }
+}
+
+// Copies the edges into `script`, each followed by its bounces. Bounces that would
+// reach the button's next edge in the same segment are dropped; a segment's bounces
+// all play before its await begins, so a later segment never limits them.
+void Parser::expand_bounces(ButtonScript& script) const {
+  std::array<std::vector<const PendingEdge*>, kButtonCount> per_button;
+  for (const PendingEdge& e : edges_) per_button[static_cast<std::size_t>(e.edge.button)].push_back(&e);
+  for (const auto& list : per_button) {
     for (std::size_t k = 0; k < list.size(); ++k) {
       const PendingEdge& e = *list[k];
-      script.edges.push_back(ButtonScript::Edge{e.edge, e.line});
-      // Bounces that would reach this button's next edge are dropped.
-      const std::int64_t limit = k + 1 < list.size() ? list[k + 1]->edge.time_ns : kMaxScriptNs * 2;
+      script.edges.push_back(ButtonScript::Edge{e.edge, e.line, e.segment});
+      const bool next_in_segment = k + 1 < list.size() && list[k + 1]->segment == e.segment;
+      const std::int64_t limit = next_in_segment ? list[k + 1]->edge.time_ns : kMaxScriptNs * 2;
       for (int n = 1; n <= e.bounces; ++n) {
         const std::int64_t back = e.edge.time_ns + (2 * n - 1) * e.bounce_interval_ns;
         const std::int64_t forth = e.edge.time_ns + 2 * n * e.bounce_interval_ns;
         if (forth >= limit) break;
-        script.edges.push_back(ButtonScript::Edge{RawEdge{e.edge.button, !e.edge.pressed, back}, e.line});
-        script.edges.push_back(ButtonScript::Edge{RawEdge{e.edge.button, e.edge.pressed, forth}, e.line});
+        script.edges.push_back(
+            ButtonScript::Edge{RawEdge{e.edge.button, !e.edge.pressed, back}, e.line, e.segment});
+        script.edges.push_back(
+            ButtonScript::Edge{RawEdge{e.edge.button, e.edge.pressed, forth}, e.line, e.segment});
       }
     }
   }
-  // Ties keep script order (the line), whichever button the edges belong to.
+}
+
+ButtonScript Parser::finish() {
+  std::stable_sort(edges_.begin(), edges_.end(), [](const PendingEdge& a, const PendingEdge& b) {
+    if (a.segment != b.segment) return a.segment < b.segment;
+    return a.edge.time_ns < b.edge.time_ns;
+  });
+  check_alternation();
+  ButtonScript script;
+  script.source = source_;
+  expand_bounces(script);
+  // Segment order first; ties keep script order (the line), whichever button.
   std::stable_sort(script.edges.begin(), script.edges.end(),
                    [](const ButtonScript::Edge& a, const ButtonScript::Edge& b) {
+                     if (a.segment != b.segment) return a.segment < b.segment;
                      if (a.edge.time_ns != b.edge.time_ns) return a.edge.time_ns < b.edge.time_ns;
                      return a.line < b.line;
                    });
-  if (!script.edges.empty()) script.end_ns = std::max(script.end_ns, script.edges.back().edge.time_ns);
+  script.awaits = awaits_;
+  // An await begins only once everything before it, bounces included, has played.
+  for (const ButtonScript::Edge& e : script.edges) {
+    if (e.segment < script.awaits.size()) {
+      std::int64_t& start = script.awaits[e.segment].start_ns;
+      start = std::max(start, e.edge.time_ns);
+    }
+  }
+  script.end_ns = cursor_ns_;
+  if (!script.edges.empty() && script.edges.back().segment == awaits_.size()) {
+    script.end_ns = std::max(script.end_ns, script.edges.back().edge.time_ns);
+  }
   return script;
 }
 
@@ -307,24 +384,88 @@ void ManualButtonClock::sleep_until(std::int64_t deadline_ns) {
 // --- ScriptButtonInput --------------------------------------------------------
 
 ScriptButtonInput::ScriptButtonInput(ButtonScript script, ButtonClock& clock, DebounceOptions options)
-    : script_(std::move(script)), clock_(&clock), debouncer_(options), start_ns_(clock.now_ns()) {}
+    : script_(std::move(script)),
+      clock_(&clock),
+      debouncer_(options),
+      start_ns_(clock.now_ns()),
+      segment_origin_ns_(start_ns_) {}
 
 ScriptButtonInput::ScriptButtonInput(ButtonScript script, DebounceOptions options)
     : script_(std::move(script)),
       owned_clock_(std::make_unique<SteadyButtonClock>()),
       clock_(owned_clock_.get()),
       debouncer_(options),
-      start_ns_(clock_->now_ns()) {}
+      start_ns_(clock_->now_ns()),
+      segment_origin_ns_(start_ns_) {}
 
-void ScriptButtonInput::feed_until(std::int64_t now_ns) {
-  while (next_edge_ < script_.edges.size()) {
+void ScriptButtonInput::notify_state(std::string_view state) {
+  last_state_ = lower(state);
+  last_state_ns_ = clock_->now_ns();
+}
+
+std::optional<std::string> ScriptButtonInput::awaiting() const {
+  if (!awaiting_) return std::nullopt;
+  return script_.awaits[segment_].state;
+}
+
+bool ScriptButtonInput::segment_fed() const {
+  return next_edge_ == script_.edges.size() || script_.edges[next_edge_].segment != segment_;
+}
+
+void ScriptButtonInput::feed_segment_until(std::int64_t now_ns) {
+  while (!segment_fed()) {
     RawEdge e = script_.edges[next_edge_].edge;
-    e.time_ns += start_ns_;
+    e.time_ns += segment_origin_ns_;
     if (e.time_ns > now_ns) break;
     debouncer_.on_edge(e);
     ++next_edge_;
   }
+}
+
+bool ScriptButtonInput::try_pass_await(std::int64_t now_ns) {
+  if (segment_ >= script_.awaits.size() || !segment_fed()) return false;
+  const ButtonScript::Await& await = script_.awaits[segment_];
+  const std::int64_t begins_ns = segment_origin_ns_ + await.start_ns;
+  if (begins_ns > now_ns) return false;
+  awaiting_ = true;
+  if (last_state_ != lower(await.state)) return false;
+  // A state reported before the await began counts from the await's start.
+  segment_origin_ns_ = std::max(begins_ns, last_state_ns_);
+  ++segment_;
+  awaiting_ = false;
+  return true;
+}
+
+void ScriptButtonInput::feed_until(std::int64_t now_ns) {
+  do {
+    feed_segment_until(now_ns);
+  } while (try_pass_await(now_ns));
   debouncer_.advance(now_ns);
+}
+
+void ScriptButtonInput::throw_if_await_timed_out(std::int64_t now_ns) const {
+  if (!awaiting_) return;
+  const ButtonScript::Await& await = script_.awaits[segment_];
+  if (now_ns < segment_origin_ns_ + await.start_ns + await.timeout_ns) return;
+  throw ButtonScriptError(script_.source, await.line,
+                          "timed out after " + duration_text(await.timeout_ns) +
+                              " waiting for state " + await.state + " (last state: " +
+                              last_state_.value_or("none reported") + ")");
+}
+
+// The earliest moment something can change: the next edge of this segment, the
+// pending await's start or timeout, a debouncer deadline, or the caller's deadline.
+std::int64_t ScriptButtonInput::next_wake_ns(std::int64_t deadline_ns) const {
+  std::int64_t wake = deadline_ns;
+  if (!segment_fed()) {
+    wake = std::min(wake, segment_origin_ns_ + script_.edges[next_edge_].edge.time_ns);
+  } else if (segment_ < script_.awaits.size()) {
+    const ButtonScript::Await& await = script_.awaits[segment_];
+    const std::int64_t begins_ns = segment_origin_ns_ + await.start_ns;
+    wake = std::min(wake, awaiting_ ? begins_ns + await.timeout_ns : begins_ns);
+  }
+  if (auto d = debouncer_.next_deadline_ns()) wake = std::min(wake, *d);
+  return wake;
 }
 
 std::optional<ButtonEvent> ScriptButtonInput::next_event(std::chrono::milliseconds timeout) {
@@ -338,18 +479,16 @@ std::optional<ButtonEvent> ScriptButtonInput::next_event(std::chrono::millisecon
     const std::int64_t now = clock_->now_ns();
     feed_until(now);
     if (auto e = debouncer_.pop_event()) return e;
+    // Events due before the timeout have been returned by now.
+    throw_if_await_timed_out(now);
     if (now >= deadline) return std::nullopt;
-    std::int64_t wake = deadline;
-    if (next_edge_ < script_.edges.size()) {
-      wake = std::min(wake, start_ns_ + script_.edges[next_edge_].edge.time_ns);
-    }
-    if (auto d = debouncer_.next_deadline_ns()) wake = std::min(wake, *d);
-    clock_->sleep_until(std::max(wake, now));
+    clock_->sleep_until(std::max(next_wake_ns(deadline), now));
   }
 }
 
 bool ScriptButtonInput::end_of_script() const {
-  return next_edge_ == script_.edges.size() && debouncer_.idle();
+  return next_edge_ == script_.edges.size() && segment_ == script_.awaits.size() &&
+         debouncer_.idle();
 }
 
 }  // namespace propcam::ui_fb

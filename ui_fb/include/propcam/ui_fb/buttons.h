@@ -277,7 +277,8 @@ class EvdevButtonInput : public FdButtonInput {
 // keywords and button names are case-insensitive):
 //
 //   line     := [ when ] action
-//   when     := "at" TIME          absolute, from the start of the script
+//   when     := "at" TIME          absolute, from the start of the script or, after
+//                                  an await, from the moment the await passed
 //             | "+" TIME           after the previous step ends (a press/hold ends
 //                                  at its release); a step without `when` is "+0ms"
 //   action   := "press" BUTTON [DURATION]   down, then up after DURATION (default 100ms)
@@ -289,9 +290,19 @@ class EvdevButtonInput : public FdButtonInput {
 //                                           COUNT bounces (back, then forth again),
 //                                           toggles INTERVAL apart (default 1ms);
 //                                           "bounce 0" turns it off
-//   TIME, DURATION := decimal number + unit "ms" or "s" (e.g. 500ms, 1.2s, 0s);
-//                     at most 24h; negative, NaN, infinite or unit-less is an error
+//             | "await" STATE [TIMEOUT]     pauses until the appliance reports STATE
+//                                           (notify_state); TIMEOUT default 600s
+//   TIME, DURATION, TIMEOUT := decimal number + unit "ms" or "s" (e.g. 500ms, 1.2s,
+//                     0s); at most 24h; negative, NaN, infinite or unit-less is an error
 //   BUTTON   := SHOOT | NEXT | PREV | OK | BACK
+//   STATE    := a letter, then letters, digits, '_', '-' or '/' (case-insensitive)
+//
+// An await starts at its `when`, but not before every earlier edge (bounces
+// included) has played. It passes as soon as the most recently reported state is
+// STATE, at once if the appliance is already in it. The steps after it are timed
+// from the moment it passed (the report, or the await's start if the state was
+// reported earlier): both "+" and "at" count from there, so each await starts a new
+// time origin. If TIMEOUT passes first, next_event() throws a ButtonScriptError.
 //
 // Steps must be in time order ("at" may not go back before the previous step's
 // start). A button pressed while already down, or released while up, is an error,
@@ -301,7 +312,8 @@ class EvdevButtonInput : public FdButtonInput {
 //
 // Example:
 //   # export after placing a prop
-//   at 0.5s press NEXT
+//   at 0.5s press SHOOT
+//   await placing          # analysis takes seconds, different on every machine
 //   +200ms press OK
 //   +1s hold OK 1200ms     # long press: export
 
@@ -314,14 +326,26 @@ class ButtonScriptError : public std::runtime_error {
   int line_;
 };
 
+// Awaits split a script into segments, each with its own time origin: segment 0
+// starts with the script, segment k + 1 when awaits[k] passes.
 struct ButtonScript {
   struct Edge {
-    RawEdge edge;   // time_ns relative to the script's start
-    int line;       // the script line that produced it
+    RawEdge edge;             // time_ns relative to its segment's origin
+    int line;                 // the script line that produced it
+    std::size_t segment = 0;  // which segment it belongs to
   };
-  std::string source;        // file name or "<script>", for messages
-  std::vector<Edge> edges;   // sorted by time (stable: script order on ties)
-  std::int64_t end_ns = 0;   // the last edge's time (or last wait's end)
+  struct Await {
+    std::string state;        // as written; compared case-insensitively
+    std::int64_t start_ns;    // when waiting begins, relative to its segment's origin
+                              // (never before that segment's last edge)
+    std::int64_t timeout_ns;  // from start_ns
+    int line;
+  };
+  std::string source;          // file name or "<script>", for messages
+  std::vector<Edge> edges;     // by segment, then time (stable: script order on ties)
+  std::vector<Await> awaits;   // awaits[k] ends segment k
+  std::int64_t end_ns = 0;     // the last segment's last edge (or wait's end), relative
+                               // to that segment's origin
 
   static ButtonScript parse(std::string_view text, std::string source = "<script>");
   // Throws std::runtime_error if the file cannot be read, ButtonScriptError if it
@@ -370,14 +394,32 @@ class ScriptButtonInput : public ButtonInput {
   std::string name() const override { return "script " + script_.source; }
   const ButtonDebouncer& debouncer() const override { return debouncer_; }
 
-  // True once every scripted edge has been fed, the debouncer has settled with no
-  // button held and every event has been returned.
+  // While the script waits at an await, next_event() returns nullopt after at most
+  // `timeout` as usual (the debouncer keeps running), and throws ButtonScriptError
+  // "<source>:<line>: timed out after 600s waiting for state placing (last state:
+  // analysing)" once the await's own timeout has passed on the clock.
+  //
+  // The appliance reports its state (e.g. "placing") after every change, from the
+  // thread that calls next_event(). The last report is remembered with the clock's
+  // time, so an await for the state the appliance is already in passes at once.
+  void notify_state(std::string_view state);
+  // The state the script is waiting for, while it waits at an await.
+  std::optional<std::string> awaiting() const;
+
+  // True once every scripted edge has been fed and every await passed, the debouncer
+  // has settled with no button held and every event has been returned.
   bool end_of_script() const;
   std::int64_t start_ns() const { return start_ns_; }
   const ButtonScript& script() const { return script_; }
 
  private:
   void feed_until(std::int64_t now_ns);
+  void feed_segment_until(std::int64_t now_ns);
+  bool segment_fed() const;
+  // Starts the pending await once due; passes it if the state was reported.
+  bool try_pass_await(std::int64_t now_ns);
+  void throw_if_await_timed_out(std::int64_t now_ns) const;
+  std::int64_t next_wake_ns(std::int64_t deadline_ns) const;
 
   ButtonScript script_;
   std::unique_ptr<ButtonClock> owned_clock_;
@@ -385,6 +427,11 @@ class ScriptButtonInput : public ButtonInput {
   ButtonDebouncer debouncer_;
   std::int64_t start_ns_;
   std::size_t next_edge_ = 0;
+  std::size_t segment_ = 0;         // the segment being played
+  std::int64_t segment_origin_ns_;  // when it started (clock time)
+  bool awaiting_ = false;           // segment_'s await has begun and not yet passed
+  std::optional<std::string> last_state_;  // lower-case, as last reported
+  std::int64_t last_state_ns_ = 0;
 };
 
 }  // namespace propcam::ui_fb
