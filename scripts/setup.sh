@@ -7,6 +7,8 @@ packages=(
   build-essential cmake ninja-build pkg-config git
   # hardware backends named by the design
   libcamera-dev libv4l-dev libgpiod-dev
+  # DRM/KMS display for boards without fbdev emulation (ui_fb DrmDisplay)
+  libdrm-dev
   # sd_notify / watchdog for the systemd units (board/systemd)
   libsystemd-dev
   # MJPEG frames (libjpeg-turbo's libjpeg API)

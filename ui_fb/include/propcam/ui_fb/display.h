@@ -1,10 +1,14 @@
-// Where a finished Canvas goes: a Linux framebuffer device on the appliance, or
-// a file-backed framebuffer that leaves PNG snapshots (development, CI, demos).
+// Where a finished Canvas goes: a Linux framebuffer device or a DRM/KMS card on the
+// appliance, or a file-backed framebuffer that leaves PNG snapshots (development, CI,
+// demos).
 #pragma once
 
+#include <chrono>
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <memory>
+#include <optional>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -124,6 +128,68 @@ class FbdevDisplay : public Display {
   bool double_buffered_ = false;
   int visible_page_ = 0;  // double-buffered: 0 shows rows [0, h), 1 shows [h, 2h)
   std::string name_;
+};
+
+struct DrmDisplayOptions {
+  std::filesystem::path card = "/dev/dri/card0";
+  // A connector id (as modetest lists them); nullopt takes the first connected one.
+  std::optional<std::uint32_t> connector_id;
+  // 2: draw into a hidden buffer and page-flip to it; 1: draw into the shown one.
+  int buffer_count = 2;
+  // How long present() waits for a page flip to complete (a few frames).
+  std::chrono::milliseconds flip_timeout{100};
+};
+
+// Thrown when a DRM card works but cannot show the UI now: nothing is plugged in,
+// or another process (a compositor, an X server) is DRM master.
+class DrmDisplayUnavailable : public std::runtime_error {
+ public:
+  enum class Reason { NoConnectedConnector, OwnedByAnotherProcess };
+  DrmDisplayUnavailable(Reason reason, const std::string& message)
+      : std::runtime_error(message), reason_(reason) {}
+  Reason reason() const { return reason_; }
+
+ private:
+  Reason reason_;
+};
+
+// A DRM/KMS card (/dev/dri/cardN) driven with dumb buffers, for boards without
+// fbdev emulation. The constructor becomes DRM master, picks a connected connector,
+// its preferred mode and a CRTC, allocates the buffers (XRGB8888, or RGB565 if the
+// driver takes nothing else) and shows a black frame. present() packs the canvas
+// with the same PixelPacker as the other displays into the hidden buffer and
+// page-flips to it, waiting for the flip at most flip_timeout; a driver without
+// page flips gets drmModeSetCrtc instead. The destructor restores the CRTC as it
+// was (e.g. the console) and releases everything.
+class DrmDisplay : public Display {
+ public:
+  // Throws std::runtime_error naming the card: cannot open, not a DRM device, no
+  // modesetting or dumb buffers, no CRTC, allocation failures; DrmDisplayUnavailable
+  // for no connected connector or another DRM master; std::invalid_argument for a
+  // buffer_count other than 1 or 2.
+  explicit DrmDisplay(DrmDisplayOptions options = {});
+  ~DrmDisplay() override;
+  DrmDisplay(const DrmDisplay&) = delete;
+  DrmDisplay& operator=(const DrmDisplay&) = delete;
+
+  Size size() const override;
+  // Also throws std::runtime_error if the driver refuses the frame, or a page flip
+  // is still pending a flip_timeout after the previous present().
+  void present(const Canvas& canvas) override;
+  // e.g. "drm /dev/dri/card0 (bochs-drm) connector 35 Virtual-1 1280x800@75 ..."
+  std::string name() const override;
+
+  const FramebufferFormat& format() const;
+  std::size_t line_length() const;  // the dumb buffer's pitch
+  std::uint32_t connector_id() const;
+  std::uint32_t crtc_id() const;
+  int buffer_count() const;
+  // False with one buffer, or once the driver refused a page flip.
+  bool page_flips() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
 };
 
 }  // namespace propcam::ui_fb
