@@ -1104,7 +1104,8 @@ std::vector<std::string> flow_figures(const std::vector<std::string>& figures, i
 void draw_rendering(const ScreenContext& c) {
   const Rect image = draw_picture(c.canvas, c.picture, c.view.image, "no composite yet", c.m);
   if (!image.empty()) draw_tile_overlay(c.canvas, image, size_of(c.view.image), c.view.tiles);
-  draw_caption(c.canvas, image.empty() ? c.picture : image, c.view.image_caption, Edge::Top, c.m);
+  draw_caption(c.canvas, image.empty() ? c.picture : image, c.view.image_caption, Edge::Bottom,
+               c.m);
 
   Rect strip = inset({c.main.x, c.picture.bottom(), c.main.width, c.main.bottom() - c.picture.bottom()},
                      c.m.pad, 0);
