@@ -1289,8 +1289,9 @@ void draw_fault(const ScreenContext& c) {
   draw_text_in(c.canvas, sign, "⚠", {c.m.large_px, colours::kFault, FontWeight::Bold},
                Align::Centre);
   take_left(inner, c.m.pad);
-  const TextStyle style{c.m.body_px, colours::kText};
-  const int line_h = line_height(c.m.body_px) + c.m.gap;
+  // A little larger than body text: this is the one thing to read here.
+  const TextStyle style{c.m.title_px, colours::kText};
+  const int line_h = line_height(c.m.title_px) + c.m.gap;
   const std::string_view message =
       c.view.fault_message.empty() ? std::string_view("unknown fault") : c.view.fault_message;
   for (const std::string& line : wrap_lines(message, style, inner.width, inner.height / line_h)) {
