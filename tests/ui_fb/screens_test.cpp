@@ -1,6 +1,8 @@
 #include "propcam/ui_fb/screens.h"
 
+#include <cmath>
 #include <set>
+#include <utility>
 #include <string>
 #include <vector>
 
@@ -505,6 +507,24 @@ TEST(ScreensAll, FloatImagesDrawLikeTheirEightBitTwins) {
   const Canvas canvas = draw(view);
   const Rect area = screen_image_area(canvas.size(), view);
   EXPECT_EQ(count_colour(canvas, area, Rgb{255, 0, 255}), area_of(area));
+}
+
+TEST(ScreensAll, BigShrinksAverageInsteadOfAliasing) {
+  // One-pixel black and white columns: shrunk by more than 2x (even blocks, so
+  // a box filter is exact) they must become an even grey, not stripes.
+  cv::Mat stripes(960, 1280, CV_8UC3, cv::Scalar::all(0));
+  for (int x = 0; x < stripes.cols; x += 2) stripes.col(x).setTo(cv::Scalar::all(255));
+  cv::Mat linear;
+  stripes.convertTo(linear, CV_32FC3, 1.0 / 255.0);
+  // 8-bit frames average their codes; float renders average light (0.5 is sRGB 188).
+  for (const auto& [image, grey] : {std::pair{stripes, 128}, std::pair{linear, 188}}) {
+    ScreenView view;
+    view.image = image;
+    const Canvas canvas = draw(view);
+    const Rect area = screen_image_area(canvas.size(), view);
+    const auto near_grey = [grey](Rgb p) { return std::abs(p.r - grey) <= 3; };
+    EXPECT_EQ(count_pixels(canvas, area, near_grey), area_of(area)) << "grey " << grey;
+  }
 }
 
 }  // namespace
