@@ -87,7 +87,8 @@ TEST(ScreensLayout, BarsAndMainAreaTileTheCanvas) {
     EXPECT_GE(layout.hint_bar.height, 16);
     EXPECT_GT(layout.main.height, size.height * 2 / 3);
   }
-  EXPECT_GT(screen_layout({1280, 800}).title_bar.height, screen_layout({320, 240}).title_bar.height);
+  EXPECT_GT(screen_layout({1280, 800}).title_bar.height,
+            screen_layout({320, 240}).title_bar.height);
 }
 
 TEST(ScreensLayout, TinyCanvasesKeepHalfForTheMainArea) {
@@ -120,7 +121,8 @@ TEST(ScreensViewfinder, ImageAreaHoldsExactlyTheFrame) {
   const Rect area = screen_image_area(canvas.size(), view);
   EXPECT_EQ(area, image_area(screen_layout(canvas.size()).main, {640, 360}));
   EXPECT_EQ(count_colour(canvas, area, kPhoto), area_of(area));
-  EXPECT_EQ(count_colour(canvas, canvas.bounds(), kPhoto), area_of(area)) << "frame drawn elsewhere";
+  EXPECT_EQ(count_colour(canvas, canvas.bounds(), kPhoto), area_of(area))
+      << "frame drawn elsewhere";
 }
 
 TEST(ScreensViewfinder, CaptionIsDrawnOverTheBottomEdge) {
@@ -253,7 +255,9 @@ TEST(ScreensCarousel, IndexIsShown) {
   EXPECT_GT(count_pixels(one, top_right, [](Rgb p) { return p.r > 100; }), 10);
   int differing = 0;
   for (int y = top_right.y; y < top_right.bottom(); ++y) {
-    for (int x = top_right.x; x < top_right.right(); ++x) differing += !(one.pixel(x, y) == two.pixel(x, y));
+    for (int x = top_right.x; x < top_right.right(); ++x) {
+      differing += !(one.pixel(x, y) == two.pixel(x, y));
+    }
   }
   EXPECT_GT(differing, 0);
 }

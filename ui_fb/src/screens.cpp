@@ -728,7 +728,8 @@ struct ScreenContext {
 
 void draw_viewfinder(const ScreenContext& c) {
   const Rect image = draw_picture(c.canvas, c.picture, c.view.image, "no camera frame", c.m);
-  draw_caption(c.canvas, image.empty() ? c.picture : image, c.view.image_caption, Edge::Bottom, c.m);
+  draw_caption(c.canvas, image.empty() ? c.picture : image, c.view.image_caption, Edge::Bottom,
+               c.m);
 }
 
 constexpr double kFlashBorderEm = 0.3;
@@ -790,7 +791,8 @@ void draw_stage_row(Canvas& canvas, Rect row, const StageLine& stage, const Metr
                {m.body_px, name_colour});
   const Rgb detail_colour =
       stage.status == StageLine::Status::Failed ? colours::kFault : colours::kDimText;
-  draw_text_in(canvas, take_right(row, row.width - m.gap), stage.detail, {m.small_px, detail_colour});
+  draw_text_in(canvas, take_right(row, row.width - m.gap), stage.detail,
+               {m.small_px, detail_colour});
 }
 
 void draw_analysing(const ScreenContext& c) {
@@ -808,7 +810,8 @@ void draw_analysing(const ScreenContext& c) {
   }
   const int first = first_visible_row(stage_count, rows, focus_stage(c.view.stages));
   for (int i = first; i < std::min(stage_count, first + rows); ++i) {
-    draw_stage_row(c.canvas, take_top(inner, row_h), c.view.stages[static_cast<std::size_t>(i)], c.m);
+    draw_stage_row(c.canvas, take_top(inner, row_h), c.view.stages[static_cast<std::size_t>(i)],
+                   c.m);
   }
   const std::string elapsed = format_seconds(c.view.elapsed_seconds);
   if (!elapsed.empty()) {
@@ -850,11 +853,47 @@ void draw_thumbnail(Canvas& canvas, const Rect& box, const PropCard& prop, int b
 // How many neighbours to show on each side so that no prop appears twice
 // (the carousel wraps around: NEXT after the last one is the first).
 int neighbours_right(std::size_t count) { return static_cast<int>(count / 2); }
-int neighbours_left(std::size_t count) { return count == 0 ? 0 : static_cast<int>((count - 1) / 2); }
+int neighbours_left(std::size_t count) {
+  return count == 0 ? 0 : static_cast<int>((count - 1) / 2);
+}
 
 std::size_t wrapped(long long index, std::size_t count) {
   const long long n = static_cast<long long>(count);
   return static_cast<std::size_t>(((index % n) + n) % n);
+}
+
+// The selected prop's name (may be a little wider than its thumbnail) and material.
+void draw_prop_caption(const ScreenContext& c, const PropCard& prop, const Rect& area,
+                       Rect name_row, Rect material_row, int thumbnail_side) {
+  const int width = std::min(area.width, thumbnail_side + thumbnail_side / 2);
+  const int x = area.x + (area.width - width) / 2;
+  name_row = {x, name_row.y, width, name_row.height};
+  material_row = {x, material_row.y, width, material_row.height};
+  draw_text_in(c.canvas, name_row, prop.name, {c.m.title_px, colours::kText, FontWeight::Bold},
+               Align::Centre);
+  draw_text_in(c.canvas, material_row, prop.material, {c.m.small_px, colours::kDimText},
+               Align::Centre);
+}
+
+// The props before and after the selected one, small, as far as whole cards fit.
+void draw_neighbours(const ScreenContext& c, std::size_t selected, const Rect& large,
+                     const Rect& area) {
+  const std::vector<PropCard>& props = c.view.props;
+  const int side = static_cast<int>(large.width * kNeighbourScale);
+  const int spacing = side + 2 * c.m.pad;
+  const int y = large.y + (large.height - side) / 2;
+  const auto draw_neighbour = [&](int x, long long index) {
+    const Rect box{x, y, side, side};
+    if (box.empty() || box.x < area.x || box.right() > area.right()) return;
+    draw_thumbnail(c.canvas, box, props[wrapped(index, props.size())], c.m.small_px, c.m);
+  };
+  const long long centre = static_cast<long long>(selected);
+  for (int d = 1; d <= std::min(kMaxNeighboursPerSide, neighbours_right(props.size())); ++d) {
+    draw_neighbour(large.right() + 2 * c.m.pad + (d - 1) * spacing, centre + d);
+  }
+  for (int d = 1; d <= std::min(kMaxNeighboursPerSide, neighbours_left(props.size())); ++d) {
+    draw_neighbour(large.x - d * spacing, centre - d);
+  }
 }
 
 void draw_carousel(const ScreenContext& c) {
@@ -867,8 +906,7 @@ void draw_carousel(const ScreenContext& c) {
   const std::size_t selected = valid_index(c.view.selected_prop, props.size())
                                    ? static_cast<std::size_t>(c.view.selected_prop)
                                    : 0;
-  const Rect index_row = take_top(area, line_height(c.m.small_px));
-  draw_text_in(c.canvas, index_row,
+  draw_text_in(c.canvas, take_top(area, line_height(c.m.small_px)),
                std::to_string(selected + 1) + " / " + std::to_string(props.size()),
                {c.m.small_px, colours::kDimText}, Align::Right);
   const Rect material_row = take_bottom(area, line_height(c.m.small_px));
@@ -878,30 +916,8 @@ void draw_carousel(const ScreenContext& c) {
   draw_thumbnail(c.canvas, large, props[selected], c.m.small_px, c.m);
   c.canvas.stroke_rect(inset(large, -kSelectionBorder, -kSelectionBorder), colours::kAccent,
                        kSelectionBorder);
-  // The name may be a little wider than the thumbnail.
-  const int caption_width = std::min(area.width, side + side / 2);
-  const int caption_x = area.x + (area.width - caption_width) / 2;
-  draw_text_in(c.canvas, {caption_x, name_row.y, caption_width, name_row.height},
-               props[selected].name, {c.m.title_px, colours::kText, FontWeight::Bold},
-               Align::Centre);
-  draw_text_in(c.canvas, {caption_x, material_row.y, caption_width, material_row.height},
-               props[selected].material, {c.m.small_px, colours::kDimText}, Align::Centre);
-
-  const int small = static_cast<int>(side * kNeighbourScale);
-  const int spacing = small + 2 * c.m.pad;
-  const int small_y = large.y + (large.height - small) / 2;
-  const auto draw_neighbour = [&](int x, long long index) {
-    const Rect box{x, small_y, small, small};
-    if (box.empty() || box.x < area.x || box.right() > area.right()) return;  // only whole cards
-    draw_thumbnail(c.canvas, box, props[wrapped(index, props.size())], c.m.small_px, c.m);
-  };
-  const long long centre = static_cast<long long>(selected);
-  for (int d = 1; d <= std::min(kMaxNeighboursPerSide, neighbours_right(props.size())); ++d) {
-    draw_neighbour(large.right() + 2 * c.m.pad + (d - 1) * spacing, centre + d);
-  }
-  for (int d = 1; d <= std::min(kMaxNeighboursPerSide, neighbours_left(props.size())); ++d) {
-    draw_neighbour(large.x - d * spacing, centre - d);
-  }
+  draw_prop_caption(c, props[selected], area, name_row, material_row, side);
+  draw_neighbours(c, selected, large, area);
 }
 
 // Placement -----------------------------------------------------------------
@@ -910,8 +926,10 @@ constexpr double kSpotRadiusEm = 0.22;
 constexpr double kCursorArmEm = 1.1;
 constexpr double kFootprintLineEm = 0.15;
 
+// A white dot with a half-pixel dark rim, visible on light and dark photos.
 void draw_spot(cv::Mat& pixels, const cv::Point2d& at, int radius) {
-  cv::circle(pixels, subpixel(at), radius * static_cast<int>(kSubpixelScale) + 8,
+  constexpr int kRim = static_cast<int>(kSubpixelScale) / 2;
+  cv::circle(pixels, subpixel(at), radius * static_cast<int>(kSubpixelScale) + kRim,
              cv::Scalar(0, 0, 0), cv::FILLED, cv::LINE_AA, kSubpixelBits);
   cv::circle(pixels, subpixel(at), radius * static_cast<int>(kSubpixelScale),
              to_scalar(colours::kSpot), cv::FILLED, cv::LINE_AA, kSubpixelBits);
@@ -1024,7 +1042,8 @@ void draw_tier_pick(const ScreenContext& c) {
   draw_panel(c.canvas, panel, colours::kTrack);
   Rect inner = inset(panel, c.m.pad, c.m.pad);
   if (count == 0) {
-    draw_text_in(c.canvas, inner, "no render tiers", {c.m.body_px, colours::kDimText}, Align::Centre);
+    draw_text_in(c.canvas, inner, "no render tiers", {c.m.body_px, colours::kDimText},
+                 Align::Centre);
     return;
   }
   const bool has_selection = valid_index(c.view.selected_tier, c.view.tiers.size());
@@ -1073,7 +1092,9 @@ std::vector<std::string> rendering_figures(const ScreenView& view) {
   if (const std::string done = format_predicted(view.predicted_seconds_to_done); !done.empty()) {
     figures.push_back("done in " + done);
   }
-  if (view.samples_per_pixel > 0) figures.push_back(std::to_string(view.samples_per_pixel) + " spp");
+  if (view.samples_per_pixel > 0) {
+    figures.push_back(std::to_string(view.samples_per_pixel) + " spp");
+  }
   if (view.skipped_tiles > 0) {
     figures.push_back(count_text(view.skipped_tiles, "tile skipped", "tiles skipped"));
   }
@@ -1096,7 +1117,8 @@ std::vector<std::string> flow_figures(const std::vector<std::string>& figures, i
   std::vector<std::string> lines;
   std::string line;
   for (const std::string& figure : figures) {
-    const std::string candidate = line.empty() ? figure : line + std::string(kFigureSeparator) + figure;
+    const std::string candidate =
+        line.empty() ? figure : line + std::string(kFigureSeparator) + figure;
     const bool last_row = static_cast<int>(lines.size()) + 1 >= rows;
     if (line.empty() || last_row || width_of(elide(candidate, style, 1 << 14), style) <= width) {
       line = candidate;
@@ -1110,22 +1132,17 @@ std::vector<std::string> flow_figures(const std::vector<std::string>& figures, i
   return lines;
 }
 
-void draw_rendering(const ScreenContext& c) {
-  const Rect image = draw_picture(c.canvas, c.picture, c.view.image, "no composite yet", c.m);
-  if (!image.empty()) draw_tile_overlay(c.canvas, image, size_of(c.view.image), c.view.tiles);
-  draw_caption(c.canvas, image.empty() ? c.picture : image, c.view.image_caption, Edge::Bottom,
-               c.m);
-
-  Rect strip = inset({c.main.x, c.picture.bottom(), c.main.width, c.main.bottom() - c.picture.bottom()},
-                     c.m.pad, 0);
+// Below the composite: the progress bar, then the converged share and the figures.
+void draw_rendering_strip(const ScreenContext& c, Rect strip) {
   take_top(strip, c.m.gap);
-  const double fraction =
-      std::isnan(c.view.converged_fraction) ? 0.0 : std::clamp(c.view.converged_fraction, 0.0, 1.0);
+  const double fraction = std::isnan(c.view.converged_fraction)
+                              ? 0.0
+                              : std::clamp(c.view.converged_fraction, 0.0, 1.0);
   draw_progress_bar(c.canvas, take_top(strip, progress_bar_height(c.m)), fraction);
-  // The first row: the figures, and the converged share right-aligned under the bar's end.
   const TextStyle small{c.m.small_px, colours::kText};
   const int text_h = line_height(c.m.small_px) + c.m.gap;
   Rect first_row = take_top(strip, text_h);
+  // Right-aligned under the bar's end, where the eye lands after following the bar.
   const Rect percent_box = take_right(first_row, width_of("100 % converged", small) + c.m.pad);
   draw_text_in(c.canvas, percent_box,
                printf_string("%.0f %% converged", std::floor(fraction * 100.0)), small,
@@ -1136,6 +1153,16 @@ void draw_rendering(const ScreenContext& c) {
   for (std::size_t i = 1; i < lines.size(); ++i) {
     draw_text_in(c.canvas, take_top(strip, text_h), lines[i], {c.m.small_px, colours::kDimText});
   }
+}
+
+void draw_rendering(const ScreenContext& c) {
+  const Rect image = draw_picture(c.canvas, c.picture, c.view.image, "no composite yet", c.m);
+  if (!image.empty()) draw_tile_overlay(c.canvas, image, size_of(c.view.image), c.view.tiles);
+  draw_caption(c.canvas, image.empty() ? c.picture : image, c.view.image_caption, Edge::Bottom,
+               c.m);
+  const Rect below{c.main.x, c.picture.bottom(), c.main.width,
+                   c.main.bottom() - c.picture.bottom()};
+  draw_rendering_strip(c, inset(below, c.m.pad, 0));
 }
 
 // Adjusting -----------------------------------------------------------------
@@ -1193,7 +1220,8 @@ void draw_slider_row(Canvas& canvas, Rect row, const SliderView& slider, bool se
 
 void draw_adjusting(const ScreenContext& c) {
   const Rect image = draw_picture(c.canvas, c.picture, c.view.image, "no composite yet", c.m);
-  draw_caption(c.canvas, image.empty() ? c.picture : image, c.view.image_caption, Edge::Bottom, c.m);
+  draw_caption(c.canvas, image.empty() ? c.picture : image, c.view.image_caption, Edge::Bottom,
+               c.m);
   const int rows = slider_rows(c.main, c.view, c.m);
   if (rows <= 0) return;
   Rect strip{c.main.x, c.picture.bottom(), c.main.width, c.main.bottom() - c.picture.bottom()};
