@@ -280,6 +280,26 @@ const std::array<double, 255>& srgb_step_thresholds() {
   return thresholds;
 }
 
+// The code at the lower edge of each of kSrgbSeedBins equal bins over [0, 1]:
+// a lower bound for every value in the bin, from which linear_to_srgb8 walks up
+// a step or two instead of binary-searching 255 thresholds (float renders are
+// encoded per pixel and channel on every redraw).
+constexpr int kSrgbSeedBins = 4096;
+
+const std::array<std::uint8_t, kSrgbSeedBins>& srgb_seed_codes() {
+  static const std::array<std::uint8_t, kSrgbSeedBins> seeds = [] {
+    const auto& thresholds = srgb_step_thresholds();
+    std::array<std::uint8_t, kSrgbSeedBins> result{};
+    for (int bin = 0; bin < kSrgbSeedBins; ++bin) {
+      const double lower_edge = static_cast<double>(bin) / kSrgbSeedBins;
+      result[static_cast<std::size_t>(bin)] = static_cast<std::uint8_t>(
+          std::upper_bound(thresholds.begin(), thresholds.end(), lower_edge) - thresholds.begin());
+    }
+    return result;
+  }();
+  return seeds;
+}
+
 std::uint8_t blend(std::uint8_t background, std::uint8_t foreground, int alpha) {
   return static_cast<std::uint8_t>((foreground * alpha + background * (255 - alpha) + 127) / 255);
 }
@@ -288,10 +308,14 @@ std::uint8_t blend(std::uint8_t background, std::uint8_t foreground, int alpha) 
 
 std::uint8_t linear_to_srgb8(float linear) {
   if (!(linear > 0.0f)) return 0;  // also catches NaN
+  if (linear >= 1.0f) return 255;  // also catches +inf
   const auto& thresholds = srgb_step_thresholds();
   const double value = linear;
-  return static_cast<std::uint8_t>(
-      std::upper_bound(thresholds.begin(), thresholds.end(), value) - thresholds.begin());
+  // Counts the thresholds <= value, starting from the bin's lower edge (exact:
+  // scaling by a power of two and truncating never lands above value).
+  std::size_t code = srgb_seed_codes()[static_cast<std::size_t>(value * kSrgbSeedBins)];
+  while (code < thresholds.size() && thresholds[code] <= value) ++code;
+  return static_cast<std::uint8_t>(code);
 }
 
 Canvas::Canvas(int width, int height) {

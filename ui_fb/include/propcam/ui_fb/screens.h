@@ -136,6 +136,39 @@ ScreenLayout screen_layout(Size canvas);
 // centred, aspect kept), so callers can map image pixels to screen pixels.
 Rect image_area(const Rect& area, Size image);
 
+// Where draw_screen puts view.image on a canvas of this size (in canvas pixels):
+// image_area() of the screen's picture region, which is the main area except
+// on Rendering (a progress strip below) and Adjusting (the sliders below).
+// Empty when the image is empty or of a type that cannot be drawn.
+Rect screen_image_area(Size canvas, const ScreenView& view);
+
+// The outline colour of an unfinished tile on the Rendering screen: green at or
+// below kTileErrorLow, through yellow, to red at or above kTileErrorHigh (log
+// scale in between). NaN (no estimate yet) counts as high.
+inline constexpr double kTileErrorLow = 0.01;
+inline constexpr double kTileErrorHigh = 0.25;
+Rgb tile_error_colour(double relative_error);
+
+// The colours draw_screen paints with, so tests and tools can find things on screen.
+namespace screen_colours {
+inline constexpr Rgb kBackground{18, 20, 24};
+inline constexpr Rgb kBar{34, 38, 46};         // title and hint bars
+inline constexpr Rgb kText{236, 238, 240};
+inline constexpr Rgb kDimText{150, 156, 166};
+inline constexpr Rgb kAccent{64, 156, 255};    // keys in the hint bar, progress, selection border
+inline constexpr Rgb kHighlight{30, 96, 190};  // the selected row (tier, slider)
+inline constexpr Rgb kTrack{70, 76, 88};       // empty part of progress bars and sliders
+inline constexpr Rgb kPlaceholder{44, 46, 52}; // where an image is missing
+inline constexpr Rgb kFlash{255, 255, 255};    // the Captured screen's border
+inline constexpr Rgb kFault{224, 52, 52};
+inline constexpr Rgb kFaultPanel{52, 20, 22};
+inline constexpr Rgb kGood{72, 200, 96};
+inline constexpr Rgb kUsbBadge{240, 150, 30};
+inline constexpr Rgb kFootprint{255, 214, 0};
+inline constexpr Rgb kCursor{255, 60, 170};
+inline constexpr Rgb kSpot{255, 255, 255};
+}  // namespace screen_colours
+
 // Paints the whole canvas. Never throws for view contents (empty images,
 // out-of-range indices, NaN times and huge strings are drawn as something
 // sensible); throws std::runtime_error only if the font is missing.
