@@ -139,7 +139,10 @@ inline std::vector<int> check_stick(const fs::path& stick_dir, bool allow_tempor
       EXPECT_FALSE(doc.is_discarded()) << "torn sidecar: " << path;
       const fs::path png = stick_dir / (name.substr(0, name.size() - 5) + ".png");
       if (!doc.is_discarded() && fs::exists(png)) {
-        if (const auto d = decode(png)) EXPECT_EQ(doc["export_id"], d->text.at("PropCam:export_id")) << path;
+        const auto d = decode(png);
+        if (d) {
+          EXPECT_EQ(doc["export_id"], d->text.at("PropCam:export_id")) << path;
+        }
       }
     } else if (has_suffix(name, ".exr")) {
       auto in = OIIO::ImageInput::open(path.string());
