@@ -58,8 +58,7 @@ UsbTarget require_usb(const Storage& storage, const StorageChoice& s) {
 }
 
 json usb_json(const UsbStatus& u) {
-  const char* states[] = {"ready", "absent", "read-only", "full"};
-  return {{"state", states[static_cast<int>(u.state)]},
+  return {{"state", to_string(u.state)},
           {"root", u.root.string()},
           {"free_bytes", u.free_bytes},
           {"message", u.message}};

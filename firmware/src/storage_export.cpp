@@ -103,6 +103,7 @@ std::string Exporter::failure_reason(const StorageFailure& failure) const {
     case EROFS:
     case EACCES:
     case EPERM: return "stick read-only";
+    case ENOTDIR: return "stick's PropCam is not a folder";
     default: return "stick removed or failing";
   }
 }
@@ -110,6 +111,11 @@ std::string Exporter::failure_reason(const StorageFailure& failure) const {
 std::vector<fs::path> Exporter::move_to_stick(const SpoolEntry& entry, const UsbStatus& usb) {
   const fs::path stick_dir = usb.root / kStickFolder;
   ensure_dir(*io_, stick_dir);
+  // A stick is foreign data: its PropCam may be a symlink to anywhere
+  // (/etc, the spool). Exports go only into a real folder on the stick.
+  std::error_code ec;
+  if (!fs::is_directory(fs::symlink_status(stick_dir, ec)))
+    throw StorageFailure(ENOTDIR, "use (not a plain folder)", stick_dir);
 
   // The first stem under which nothing belongs to another export.
   std::string stem;

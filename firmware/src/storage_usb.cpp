@@ -54,6 +54,16 @@ UsbStatus absent(std::string message) {
 
 }  // namespace
 
+const char* to_string(UsbStatus::State state) {
+  switch (state) {
+    case UsbStatus::State::Ready: return "ready";
+    case UsbStatus::State::Absent: return "absent";
+    case UsbStatus::State::ReadOnly: return "read-only";
+    case UsbStatus::State::Full: return "full";
+  }
+  return "?";
+}
+
 std::string human_bytes(std::uintmax_t bytes) {
   constexpr double kKilo = 1000.0;
   const char* units[] = {"B", "kB", "MB", "GB", "TB"};

@@ -23,6 +23,8 @@ struct UsbStatus {
   bool usable() const { return state == State::Ready; }
 };
 
+const char* to_string(UsbStatus::State state);  // "ready", "absent", "read-only", "full"
+
 // Below this much free space a stick counts as full (a composite's PNG, JPEG
 // and sidecar need more).
 inline constexpr std::uintmax_t kStickFullBelowBytes = 1 << 20;

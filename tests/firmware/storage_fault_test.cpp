@@ -299,7 +299,9 @@ pid_t spawn_trial(const fs::path& dir, int kill_at, bool stick_late) {
   std::string filter = "--gtest_filter=StorageKillChild.ExportsUntilKilled";
   std::vector<std::string> env{"PROPCAM_KILL_TRIAL_DIR=" + dir.string(), "PROPCAM_KILL_AT=" + std::to_string(kill_at),
                                std::string("PROPCAM_KILL_STICK_LATE=") + (stick_late ? "1" : "0")};
-  for (char** e = environ; *e; ++e) env.emplace_back(*e);
+  // Not the parent's GTEST_* settings: the child must not write over its XML report.
+  for (char** e = environ; *e; ++e)
+    if (!starts_with(*e, "GTEST_")) env.emplace_back(*e);
   std::vector<char*> envp;
   for (auto& e : env) envp.push_back(e.data());
   envp.push_back(nullptr);

@@ -118,6 +118,16 @@ TEST(StorageExport, HostilePropNamesStayInTheExportFolder) {
   EXPECT_EQ(names_in(usb), (std::vector<std::string>{kStickFolder}));
 }
 
+TEST(StorageExport, ASymlinkedExportFolderIsRefused) {
+  const fs::path usb = fresh_dir("usb"), elsewhere = fresh_dir("elsewhere");
+  fs::create_directory_symlink(elsewhere, usb / kStickFolder);
+  Exporter exporter(fresh_dir("spool"), UsbTarget::folder(usb));
+  const ExportOutcome outcome = exporter.export_composite(make_item(1));
+  EXPECT_EQ(outcome.kind, ExportOutcome::Kind::Spooled);
+  EXPECT_EQ(outcome.message, "stick's PropCam is not a folder: kept in the spool (1 waiting)");
+  EXPECT_TRUE(names_in(elsewhere).empty());
+}
+
 TEST(StorageExport, NoStickSpoolsUntilAStickAppears) {
   const fs::path root = fresh_dir("mnt"), usb = root / "stick", spool = fresh_dir("spool");
   Exporter exporter(spool, UsbTarget::folder(usb));
