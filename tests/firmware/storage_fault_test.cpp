@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <fcntl.h>
+#include <sys/mount.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -224,6 +225,67 @@ TEST(StorageFault, FullSpoolFailsCleanly) {
   EXPECT_TRUE(starts_with(outcome.message, "not saved")) << outcome.message;
   EXPECT_EQ(names_in(r.spool), std::vector<std::string>{});
   EXPECT_EQ(names_in(r.usb), std::vector<std::string>{});
+}
+
+// ---- a real small filesystem, where the machine allows ----
+
+// A tmpfs of a given size mounted on a test folder (needs CAP_SYS_ADMIN:
+// root in a privileged container or on the bench; skipped elsewhere).
+class SmallFilesystem {
+ public:
+  SmallFilesystem(fs::path dir, std::uintmax_t bytes) : dir_(std::move(dir)) {
+    mounted_ = ::mount("tmpfs", dir_.c_str(), "tmpfs", 0, size_option(bytes).c_str()) == 0;
+  }
+  ~SmallFilesystem() {
+    if (mounted_) ::umount2(dir_.c_str(), MNT_DETACH);
+  }
+  SmallFilesystem(const SmallFilesystem&) = delete;
+  SmallFilesystem& operator=(const SmallFilesystem&) = delete;
+  bool mounted() const { return mounted_; }
+  bool resize(std::uintmax_t bytes) { return remount(0, size_option(bytes)); }
+  bool set_read_only(bool read_only) { return remount(read_only ? MS_RDONLY : 0, ""); }
+
+ private:
+  static std::string size_option(std::uintmax_t bytes) { return "size=" + std::to_string(bytes); }
+  bool remount(unsigned long flags, const std::string& data) {
+    return ::mount("tmpfs", dir_.c_str(), "tmpfs", MS_REMOUNT | flags, data.c_str()) == 0;
+  }
+  fs::path dir_;
+  bool mounted_ = false;
+};
+
+constexpr std::uintmax_t kSmallStickBytes = 2 << 20;   // roomier than "full" (1 MB), smaller than the PNG
+constexpr std::uintmax_t kLargerStickBytes = 32 << 20;
+constexpr std::uint64_t kNoiseSeed = 7;
+constexpr int kNoiseWidth = 1024, kNoiseHeight = 768;  // incompressible: a PNG of about 2.4 MB
+
+TEST(StorageFault, RealFullAndReadOnlyFilesystem) {
+  const fs::path usb = fresh_dir("stick"), spool = fresh_dir("spool");
+  SmallFilesystem stick(usb, kSmallStickBytes);
+  if (!stick.mounted()) GTEST_SKIP() << "cannot mount a tmpfs here (" << std::strerror(errno) << "): FaultIo covers ENOSPC";
+  ExportItem item = make_item(0);
+  item.composite_srgb8.create(kNoiseHeight, kNoiseWidth, CV_8UC3);
+  cv::RNG(kNoiseSeed).fill(item.composite_srgb8, cv::RNG::UNIFORM, 0, 256);
+  Exporter exporter(spool, UsbTarget::folder(usb));
+  ASSERT_TRUE(exporter.usb_status().usable()) << exporter.usb_status().message;
+
+  // The kernel's own ENOSPC, mid-PNG.
+  expect_spooled(exporter.export_composite(item), exporter, "stick full", "2 MB tmpfs");
+  EXPECT_EQ(names_in(usb / kStickFolder), std::vector<std::string>{});  // no torn PNG, no temporary
+  ASSERT_TRUE(stick.resize(kLargerStickBytes));
+  EXPECT_EQ(exporter.flush_spool().message, "moved 1 to USB");
+  const auto png = decode(usb / kStickFolder / (std::string(kStem) + ".png"));
+  ASSERT_TRUE(png);
+  EXPECT_TRUE(same_pixels(png->pixels, item.composite_srgb8));
+
+  // A read-only mount: the status line says so, and the kernel's EROFS keeps the next one.
+  ASSERT_TRUE(stick.set_read_only(true));
+  EXPECT_EQ(exporter.usb_status().state, UsbStatus::State::ReadOnly);
+  EXPECT_EQ(exporter.usb_status().message, "stick read-only");
+  expect_spooled(exporter.export_composite(make_item(1)), exporter, "stick read-only", "ro tmpfs");
+  ASSERT_TRUE(stick.set_read_only(false));
+  EXPECT_EQ(exporter.flush_spool().message, "moved 1 to USB");
+  EXPECT_TRUE(exporter.spool().empty());
 }
 
 // ---- kill -9 ----
