@@ -31,7 +31,7 @@ namespace {
 
 using namespace storage_test;
 
-constexpr const char* kStem = "2026-12-01_2301_chair";
+const std::string kStem = item_stem();
 
 ExportOptions all_parts() {
   ExportOptions o;

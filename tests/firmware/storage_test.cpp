@@ -18,7 +18,7 @@ namespace {
 using namespace storage_test;
 using nlohmann::json;
 
-constexpr const char* kStem = "2026-12-01_2301_chair";  // make_item's time (UTC) and prop
+const std::string kStem = item_stem();
 
 TEST(StorageNames, SanitiseKeepsASafeAlphabetOnly) {
   EXPECT_EQ(sanitise_name("chair"), "chair");
@@ -54,7 +54,7 @@ TEST(StorageExport, WritesThePngPixelForPixelTheJpegAndTheSidecar) {
   const ExportItem item = make_item(7);
   const ExportOutcome outcome = exporter.export_composite(item);
   ASSERT_EQ(outcome.kind, ExportOutcome::Kind::Written) << outcome.message;
-  EXPECT_EQ(outcome.message, std::string("saved to USB as ") + kStem + ".png");
+  EXPECT_EQ(outcome.message, "saved to USB as " + kStem + ".png");
   const fs::path dir = usb / kStickFolder;
   EXPECT_EQ(names_in(dir), (std::vector<std::string>{std::string(kStem) + ".jpg", std::string(kStem) + ".json",
                                                      std::string(kStem) + ".png"}));
@@ -106,7 +106,7 @@ TEST(StorageExport, CollidingNamesGetNumbers) {
 TEST(StorageExport, HostilePropNamesStayInTheExportFolder) {
   const fs::path usb = fresh_dir("usb");
   Exporter exporter(fresh_dir("spool"), UsbTarget::folder(usb));
-  const std::regex safe("2026-12-01_2301_[A-Za-z0-9][A-Za-z0-9_-]*(_\\d+)?\\.(png|jpg|json)");
+  const std::regex safe(item_stem("") + "[A-Za-z0-9][A-Za-z0-9_-]*(_\\d+)?\\.(png|jpg|json)");
   for (const std::string& prop : std::vector<std::string>{"../../../evil", "/etc/passwd", "..", "a\nb", std::string(500, 'x'), "\xc3\xa9t\xc3\xa9"}) {
     const ExportOutcome outcome = exporter.export_composite(make_item(2, prop));
     ASSERT_EQ(outcome.kind, ExportOutcome::Kind::Written) << outcome.message;

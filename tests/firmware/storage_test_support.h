@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <ctime>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -56,6 +57,17 @@ inline ExportItem make_item(int index, const std::string& prop = "chair") {
   item.taken = std::chrono::system_clock::time_point(std::chrono::seconds(1796166060));  // 2026-12-01 23:01 UTC
   item.metadata = {{"prop", prop}, {"index", index}};
   return item;
+}
+
+// make_item's file stem: its time as the local clock reads it (the names use
+// local time) and its prop. Written out here, apart from dated_stem, as the oracle.
+inline std::string item_stem(const std::string& prop = "chair") {
+  const std::time_t t = std::chrono::system_clock::to_time_t(make_item(0).taken);
+  std::tm tm{};
+  localtime_r(&t, &tm);
+  char text[32];
+  std::strftime(text, sizeof text, "%Y-%m-%d_%H%M_", &tm);
+  return text + prop;
 }
 
 // With linear layers, for the EXR.
