@@ -35,6 +35,7 @@ std::vector<std::uint8_t> encode_image(const std::string& format_file_name, cons
 void add_metadata(OIIO::ImageSpec& spec, const ExportItem& item, const std::string& entry_id) {
   spec.attribute("Software", kSoftwareName);
   spec.attribute("DateTime", exif_date_time(item.taken));
+  spec.attribute("Exif:DateTimeOriginal", exif_date_time(item.taken));  // what photo apps sort by
   spec.attribute("ImageDescription", "PropCam composite: " + item.prop_name + " (export " + entry_id + ")");
   spec.attribute("PropCam:export_id", entry_id);
   if (!item.metadata.empty()) spec.attribute("PropCam:metadata", item.metadata.dump());

@@ -170,7 +170,12 @@ std::vector<fs::path> Exporter::move_to_stick(const SpoolEntry& entry, const Usb
 ExportOutcome Exporter::export_composite(const ExportItem& item) {
   const std::string id = new_entry_id(std::chrono::system_clock::now());
   const std::vector<EncodedFile> files = encode_export(item, options_, id);
-  const fs::path scene = options_.scene ? item.scene_dir : fs::path();
+  // A missing scene folder costs the scene copy, never the composite.
+  std::error_code ec;
+  const bool with_scene = options_.scene && !item.scene_dir.empty();
+  if (with_scene && !fs::is_directory(item.scene_dir, ec))
+    spdlog::warn("export: no scene folder {}: exporting without it", item.scene_dir.string());
+  const fs::path scene = with_scene && fs::is_directory(item.scene_dir, ec) ? item.scene_dir : fs::path();
   ExportOutcome outcome;
   outcome.entry_id = id;
   SpoolEntry entry;

@@ -132,7 +132,8 @@ void ensure_dir(StorageIo& io, const fs::path& dir) {
   const int error = io.make_dir(dir);
   if (error == EEXIST) return;
   check_io(error, "mkdir", dir);
-  check_io(io.sync_dir(dir.parent_path()), "fsync folder", dir.parent_path());
+  const fs::path parent = dir.parent_path().empty() ? fs::path(".") : dir.parent_path();  // "spool" lives in "."
+  check_io(io.sync_dir(parent), "fsync folder", parent);
 }
 
 void remove_tree(StorageIo& io, const fs::path& path) {

@@ -188,6 +188,30 @@ TEST(StorageExport, LayersExrAndSceneFolder) {
   EXPECT_EQ(check_stick(dir), (std::vector<int>{4}));
 }
 
+TEST(StorageExport, AMissingSceneFolderCostsOnlyTheSceneCopy) {
+  const fs::path usb = fresh_dir("usb");
+  ExportOptions options;
+  options.scene = true;
+  Exporter exporter(fresh_dir("spool"), UsbTarget::folder(usb), options);
+  ExportItem item = make_item(6);
+  item.scene_dir = usb / "no-such-scene";
+  ASSERT_EQ(exporter.export_composite(item).kind, ExportOutcome::Kind::Written);
+  EXPECT_EQ(names_in(usb / kStickFolder), (std::vector<std::string>{kStem + ".jpg", kStem + ".json", kStem + ".png"}));
+}
+
+TEST(StorageExport, RelativeFoldersWork) {
+  const fs::path base = fresh_dir("cwd");
+  const fs::path old_cwd = fs::current_path();
+  fs::current_path(base);
+  fs::create_directories("usb");
+  {
+    Exporter exporter("spool", UsbTarget::folder("usb"));
+    EXPECT_EQ(exporter.export_composite(make_item(2)).kind, ExportOutcome::Kind::Written);
+  }
+  fs::current_path(old_cwd);
+  EXPECT_EQ(check_stick(base / "usb" / kStickFolder), (std::vector<int>{2}));
+}
+
 TEST(StorageExport, RestartRemovesWhatACrashLeft) {
   const fs::path usb = fresh_dir("usb"), spool = fresh_dir("spool");
   fs::create_directories(spool / ".incoming-20261201T230112-00000001");
