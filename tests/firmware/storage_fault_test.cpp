@@ -40,12 +40,16 @@ ExportOptions all_parts() {
   return o;
 }
 
-// A small scene folder with a sub-folder, made once per test.
+// A small scene folder with a sub-folder.
+void write_scene(const fs::path& scene) {
+  fs::create_directories(scene / "lights");
+  std::ofstream(scene / "scene.json") << "{\"fx\": 500}\n";
+  std::ofstream(scene / "lights" / "ibl0.bin") << std::string(5000, 'L');
+}
+
 fs::path make_scene(const std::string& name = "scene") {
   const fs::path scene = fresh_dir(name);
-  std::ofstream(scene / "scene.json") << "{\"fx\": 500}\n";
-  fs::create_directories(scene / "lights");
-  std::ofstream(scene / "lights" / "ibl0.bin") << std::string(5000, 'L');
+  write_scene(scene);
   return scene;
 }
 
@@ -328,17 +332,16 @@ constexpr int kKillTrials = 50;
 constexpr int kItemsPerTrial = 3;
 constexpr unsigned kKillSeed = 20261201;
 
-// One trial's life: three exports (the stick there, or plugged in only after
-// them and flushed), logging each export that returned.
+// One trial's life: three exports of all parts (the stick there, or plugged
+// in only after them and flushed), logging each export that returned.
 int run_kill_scenario(const fs::path& dir, int kill_at, bool stick_late) {
   auto io = std::make_shared<KillIo>(kill_at);
   const fs::path usb = dir / "usb";
   if (!stick_late) fs::create_directories(usb);
-  ExportOptions options;
-  options.layers = true;
-  Exporter exporter(dir / "spool", UsbTarget::folder(usb), options, io);
+  write_scene(dir / "scene");  // the test's fixture, not an export: plain writes
+  Exporter exporter(dir / "spool", UsbTarget::folder(usb), all_parts(), io);
   for (int i = 0; i < kItemsPerTrial; ++i) {
-    exporter.export_composite(make_layered_item(i));
+    exporter.export_composite(full_item(i, dir / "scene"));
     std::ofstream(dir / "returned.log", std::ios::app) << i << std::endl;
   }
   if (stick_late) {
@@ -419,9 +422,7 @@ TEST(StorageFault, KillNineAtRandomPointsThenRestart) {
       leftovers += starts_with(name, kSpoolIncomingPrefix) || starts_with(name, kSpoolDonePrefix);
     for (const auto& name : names_in(stick_dir)) leftovers += starts_with(name, kStickTempPrefix);
     fs::create_directories(usb);
-    ExportOptions options;
-    options.layers = true;
-    Exporter restarted(dir / "spool", UsbTarget::folder(usb), options);
+    Exporter restarted(dir / "spool", UsbTarget::folder(usb), all_parts());
     const FlushReport report = restarted.flush_spool();
     EXPECT_EQ(report.waiting, 0) << report.message;
     EXPECT_TRUE(restarted.spool().empty());
@@ -438,12 +439,16 @@ TEST(StorageFault, KillNineAtRandomPointsThenRestart) {
         << "on the stick: " << ::testing::PrintToString(on_stick) << ", returned: " << ::testing::PrintToString(returned);
     std::map<std::string, int> per_suffix;
     for (const auto& name : names_in(stick_dir))
-      for (const char* suffix : {".png", ".jpg", ".json", "_layers.exr"})
+      for (const char* suffix : {".png", ".jpg", ".json", "_layers.exr", "_scene"})
         if (has_suffix(name, suffix)) ++per_suffix[suffix];
-    for (const char* suffix : {".png", ".jpg", ".json", "_layers.exr"})
+    for (const char* suffix : {".png", ".jpg", ".json", "_layers.exr", "_scene"})
       EXPECT_EQ(per_suffix[suffix], static_cast<int>(on_stick.size())) << suffix;
-    for (const auto& name : names_in(stick_dir))
+    for (const auto& name : names_in(stick_dir)) {
       EXPECT_TRUE(starts_with(name, kStem)) << name;
+      if (!has_suffix(name, "_scene")) continue;
+      for (const char* file : {"scene.json", "lights/ibl0.bin"})
+        EXPECT_EQ(fingerprint_file(stick_dir / name / file), fingerprint_file(dir / "scene" / file)) << name;
+    }
   }
   // The trials did reach the interesting states: debris of a cut write to
   // clean up, and exports accepted but killed before they returned.
