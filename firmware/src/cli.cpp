@@ -17,6 +17,7 @@
 #include "bench_geometry.h"
 #include "bench_lighting.h"
 #include "capture_commands.h"
+#include "export_commands.h"
 #include "light_training.h"
 #include "bench_transfer.h"
 #include "bench_scene_class.h"
@@ -650,6 +651,10 @@ int run_cli(int argc, char** argv) {
   auto* record = add_record_command(app, record_args);
   ShootArgs shoot_args;
   auto* shoot = add_shoot_command(app, shoot_args);
+  ExportArgs export_args;
+  auto* export_cmd = add_export_command(app, export_args);
+  SpoolArgs spool_args;
+  auto* spool = add_spool_command(app, spool_args);
 
   RenderBenchOptions render_bench_options;
   bool render_bench_json = false;
@@ -746,6 +751,8 @@ int run_cli(int argc, char** argv) {
     if (*cameras) return run_cameras_command(cameras_args);
     if (*record) return run_record_command(record_args);
     if (*shoot) return run_shoot_command(shoot_args);
+    if (*export_cmd) return run_export_command(export_args);
+    if (*spool) return run_spool_command(spool_args);
     if (*bench) {
       if (!parse_pair(bench_size, bench_options.width, bench_options.height, 'x') || bench_options.width < 32 ||
           bench_options.height < 32)
