@@ -16,7 +16,10 @@
 // this entry's own (a crash after the rename, before the spool forgot it),
 // so a re-flush only deletes the spool entry: never a duplicate.
 //
-// One thread at a time; not for concurrent use of the same spool.
+// export_composite and flush_spool run on one thread (the appliance's export
+// worker), one spool per process; usb_status() and spool() only read and may
+// be called from the UI thread meanwhile (an entry being written or deleted is
+// not listed).
 #pragma once
 
 #include <filesystem>

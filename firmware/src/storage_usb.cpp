@@ -1,5 +1,7 @@
 #include "storage_usb.h"
 
+#include <fcntl.h>
+#include <poll.h>
 #include <sys/statvfs.h>
 #include <unistd.h>
 
@@ -176,6 +178,22 @@ UsbStatus UsbTarget::status() const {
 
 std::string UsbTarget::describe() const {
   return automatic_ ? "auto (removable mounts in " + mountinfo_.string() + ")" : "folder " + folder_.string();
+}
+
+MountWatcher::MountWatcher(const fs::path& mountinfo) : fd_(::open(mountinfo.c_str(), O_RDONLY | O_CLOEXEC)) {}
+
+MountWatcher::~MountWatcher() {
+  if (fd_ >= 0) ::close(fd_);
+}
+
+bool MountWatcher::wait(std::chrono::milliseconds timeout) {
+  if (fd_ < 0) return false;
+  pollfd p{fd_, POLLPRI, 0};
+  int n;
+  do n = ::poll(&p, 1, static_cast<int>(timeout.count()));
+  while (n < 0 && errno == EINTR);
+  // The kernel reports a changed mount table as POLLERR | POLLPRI and re-arms.
+  return n > 0 && (p.revents & (POLLPRI | POLLERR));
 }
 
 }  // namespace propcam::firmware

@@ -4,6 +4,7 @@
 // (a stick comes and goes while the appliance runs).
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <filesystem>
 #include <optional>
@@ -71,6 +72,23 @@ class UsbTarget {
   std::filesystem::path folder_;
   std::filesystem::path mountinfo_;
   std::filesystem::path sys_dev_block_;
+};
+
+// Wakes when the mount table changes (a stick mounted or unmounted: the
+// kernel flags /proc/self/mountinfo to poll()), so the appliance re-reads
+// UsbTarget::status() and flushes the spool then instead of polling.
+class MountWatcher {
+ public:
+  explicit MountWatcher(const std::filesystem::path& mountinfo = "/proc/self/mountinfo");
+  ~MountWatcher();
+  MountWatcher(const MountWatcher&) = delete;
+  MountWatcher& operator=(const MountWatcher&) = delete;
+  // True when the mounts changed since the watcher was made or since the last
+  // true; false when `timeout` passed first (or mountinfo cannot be watched).
+  bool wait(std::chrono::milliseconds timeout);
+
+ private:
+  int fd_ = -1;
 };
 
 }  // namespace propcam::firmware

@@ -292,6 +292,24 @@ TEST(StorageFault, RealFullAndReadOnlyFilesystem) {
   EXPECT_TRUE(exporter.spool().empty());
 }
 
+TEST(StorageFault, MountWatcherWakesWhenAStickIsMounted) {
+  const fs::path usb = fresh_dir("stick");
+  MountWatcher watcher;
+  // Other tests may mount in parallel: only wake-ups are asserted, after draining.
+  const auto drain = [&] {
+    for (int i = 0; i < 100 && watcher.wait(std::chrono::milliseconds(0)); ++i) {
+    }
+  };
+  drain();
+  {
+    SmallFilesystem stick(usb, kSmallStickBytes);
+    if (!stick.mounted()) GTEST_SKIP() << "cannot mount a tmpfs here";
+    EXPECT_TRUE(watcher.wait(std::chrono::milliseconds(1000)));
+    drain();
+  }
+  EXPECT_TRUE(watcher.wait(std::chrono::milliseconds(1000)));  // and unmounted
+}
+
 // ---- kill -9 ----
 
 // The real syscalls, and SIGKILL at call number `kill_at` (counting every
