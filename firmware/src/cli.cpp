@@ -16,8 +16,12 @@
 #include "bench_camera.h"
 #include "bench_geometry.h"
 #include "bench_lighting.h"
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
+
 #include "capture_commands.h"
 #include "export_commands.h"
+#include "run_command.h"
 #include "light_training.h"
 #include "bench_transfer.h"
 #include "bench_scene_class.h"
@@ -500,6 +504,8 @@ int cmd_render(const RenderArgs& a) {
 }  // namespace
 
 int run_cli(int argc, char** argv) {
+  // Logs go to stderr (the journal under systemd); stdout is for results and --json.
+  spdlog::set_default_logger(spdlog::stderr_color_mt("propcam"));
   CLI::App app{"PropCam: infer a scene from one photo and composite 3D props into it"};
   app.require_subcommand(1);
 
@@ -655,6 +661,8 @@ int run_cli(int argc, char** argv) {
   auto* export_cmd = add_export_command(app, export_args);
   SpoolArgs spool_args;
   auto* spool = add_spool_command(app, spool_args);
+  RunArgs run_args;
+  auto* run = add_run_command(app, run_args);
 
   RenderBenchOptions render_bench_options;
   bool render_bench_json = false;
@@ -753,6 +761,7 @@ int run_cli(int argc, char** argv) {
     if (*shoot) return run_shoot_command(shoot_args);
     if (*export_cmd) return run_export_command(export_args);
     if (*spool) return run_spool_command(spool_args);
+    if (*run) return run_run_command(run_args);
     if (*bench) {
       if (!parse_pair(bench_size, bench_options.width, bench_options.height, 'x') || bench_options.width < 32 ||
           bench_options.height < 32)

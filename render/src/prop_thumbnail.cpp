@@ -22,7 +22,12 @@ constexpr float kSkyRadiance = 0.2f;
 
 cv::Mat render_prop_thumbnail(const std::string& name, int size, int samples_per_pixel) {
   if (size < 1 || samples_per_pixel < 1) throw std::invalid_argument("thumbnail size and samples must be >= 1");
-  const Mesh prop = make_prop(name);
+  return render_mesh_thumbnail(make_prop(name), size, samples_per_pixel);
+}
+
+cv::Mat render_mesh_thumbnail(const Mesh& prop, int size, int samples_per_pixel) {
+  if (size < 1 || samples_per_pixel < 1) throw std::invalid_argument("thumbnail size and samples must be >= 1");
+  if (prop.positions.empty()) throw std::invalid_argument("thumbnail: the mesh is empty");
   const Eigen::AlignedBox3f box = prop.bounds();
   const Eigen::Vector3f target = box.center();
   const float radius = std::max(0.5f * box.sizes().norm(), 1e-3f);
@@ -35,7 +40,10 @@ cv::Mat render_prop_thumbnail(const std::string& name, int size, int samples_per
   ground.materials.push_back(grey);
   const float g = 40.f * radius;  // far enough that its edge is only seen at the horizon
   using V = Eigen::Vector3f;
-  add_quad(ground, V(-g, 0, g), V(g, 0, g), V(g, 0, -g), V(-g, 0, -g), 0, 1.f);
+  // The ground touches the mesh's lowest point (presets stand on y = 0; a
+  // mesh from a stick may not).
+  const float floor_y = box.min().y();
+  add_quad(ground, V(-g, floor_y, g), V(g, floor_y, g), V(g, floor_y, -g), V(-g, floor_y, -g), 0, 1.f);
   scene.add_mesh(ground, Layer::Background);
   scene.add_prop(prop, Eigen::Affine3f::Identity());
   scene.commit();

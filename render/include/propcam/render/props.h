@@ -44,5 +44,8 @@ std::vector<SphereLight> prop_lights(const Mesh& prop, const Eigen::Affine3f& wo
 // and above, framing the bounding sphere. Square, CV_32FC3 linear RGB (the
 // prop's own lights included). Throws std::invalid_argument as make_prop.
 cv::Mat render_prop_thumbnail(const std::string& name, int size = 256, int samples_per_pixel = 64);
+// The same for any mesh (a prop from a USB stick): the ground under its
+// lowest point. Throws std::invalid_argument for an empty mesh.
+cv::Mat render_mesh_thumbnail(const Mesh& prop, int size = 256, int samples_per_pixel = 64);
 
 }  // namespace propcam::render

@@ -1,0 +1,193 @@
+// The work behind the appliance's screens, on a synthetic room with exact
+// ground truth: spots on the floor, the prop's footprint, a progressive
+// render to convergence, throughput predictions and relighting.
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <filesystem>
+#include <opencv2/imgproc.hpp>
+
+#include "appliance_shot.h"
+#include "propcam/capture/image_file.h"
+#include "propcam/render/props.h"
+#include "synthetic_truth.h"
+
+namespace propcam::firmware {
+namespace {
+namespace fs = std::filesystem;
+
+class ApplianceShotTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    render::SyntheticRoomSpec spec;
+    spec.width = 160;
+    spec.height = 120;
+    spec.seed = 4;
+    render::RenderSettings settings;
+    settings.samples_per_pixel = 16;
+    const SyntheticShot shot = shoot_synthetic_room(spec, settings);
+    auto a = std::make_shared<Analysis>();
+    a->photo_linear = shot.photo_linear;
+    a->scene = shot.truth;
+    a->scene_photo = capture::srgb_linear_to_response_linear(shot.photo_linear, a->scene.gamma);
+    a->photo_rgb8 = capture::linear_to_srgb8(shot.photo_linear);
+    analysis_ = new std::shared_ptr<const Analysis>(a);
+  }
+  static void TearDownTestSuite() { delete analysis_; }
+  static const Analysis& analysis() { return **analysis_; }
+
+  static PropEntry preset(const std::string& name) {
+    PropEntry e;
+    e.name = e.source = name;
+    for (const auto& p : render::prop_presets())
+      if (p.name == name) e.natural_height_m = p.natural_height_m;
+    return e;
+  }
+  static std::shared_ptr<const Analysis>* analysis_;
+};
+std::shared_ptr<const Analysis>* ApplianceShotTest::analysis_ = nullptr;
+
+TEST_F(ApplianceShotTest, SpotsLieOnUpwardSurfacesInTheImage) {
+  const auto spots = find_spots(analysis().scene, 12);
+  ASSERT_GE(spots.size(), 3u) << "the room's floor is in view";
+  EXPECT_LE(spots.size(), 12u);
+  for (const Spot& s : spots) {
+    ASSERT_GE(s.pixel.x, 0);
+    ASSERT_LT(s.pixel.x, analysis().scene.width);
+    ASSERT_GE(s.pixel.y, 0);
+    ASSERT_LT(s.pixel.y, analysis().scene.height);
+    const cv::Vec3f n = analysis().scene.normals.at<cv::Vec3f>(static_cast<int>(s.pixel.y), static_cast<int>(s.pixel.x));
+    EXPECT_GT(n[1], 0.85f) << "spot at " << s.pixel;
+    EXPECT_GT(s.distance_m, 0.3);
+    EXPECT_LT(s.distance_m, 20.0);
+  }
+  EXPECT_EQ(find_spots(analysis().scene, 12).size(), spots.size());
+}
+
+TEST_F(ApplianceShotTest, NoSurfaceGivesNoSpots) {
+  inference::SceneModel walls = analysis().scene;
+  walls.normals = cv::Mat(walls.height, walls.width, CV_32FC3, cv::Scalar(0, 0, 1));  // everything faces the camera
+  EXPECT_TRUE(find_spots(walls, 12).empty());
+  inference::SceneModel empty;
+  EXPECT_TRUE(find_spots(empty, 12).empty());
+}
+
+TEST_F(ApplianceShotTest, FootprintSurroundsTheSpot) {
+  const auto spots = find_spots(analysis().scene, 12);
+  ASSERT_FALSE(spots.empty());
+  const render::Mesh chair = load_prop("chair");
+  const auto outline = footprint_outline(analysis().scene, spots.front(), chair, 0.9);
+  ASSERT_EQ(outline.size(), 4u);
+  std::vector<cv::Point2f> poly;
+  for (const auto& p : outline) poly.emplace_back(static_cast<float>(p.x), static_cast<float>(p.y));
+  EXPECT_GE(cv::pointPolygonTest(poly, cv::Point2f(spots.front().pixel), false), 0) << "the base is inside its footprint";
+  // A bigger prop has a bigger footprint.
+  const auto big = footprint_outline(analysis().scene, spots.front(), chair, 1.8);
+  std::vector<cv::Point2f> big_poly;
+  for (const auto& p : big) big_poly.emplace_back(static_cast<float>(p.x), static_cast<float>(p.y));
+  EXPECT_GT(cv::contourArea(big_poly), 2.5 * cv::contourArea(poly));
+}
+
+TEST_F(ApplianceShotTest, TiersCostMoreForLessError) {
+  const TierSpec draft = tier_spec(appliance::Tier::Draft), good = tier_spec(appliance::Tier::Good),
+                 final = tier_spec(appliance::Tier::Final);
+  EXPECT_LT(draft.max_samples_per_pixel, good.max_samples_per_pixel);
+  EXPECT_LT(good.max_samples_per_pixel, final.max_samples_per_pixel);
+  EXPECT_GT(draft.target_relative_error, good.target_relative_error);
+  EXPECT_GT(good.target_relative_error, final.target_relative_error);
+}
+
+TEST_F(ApplianceShotTest, ThroughputIsMeasuredAndKept) {
+  const fs::path dir = fs::temp_directory_path() / ("propcam_throughput_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  const fs::path file = dir / "throughput.json";
+  {
+    ThroughputModel model(file);
+    EXPECT_FALSE(model.measured());
+    EXPECT_DOUBLE_EQ(model.pixel_samples_per_second(), ThroughputModel::kDefaultPixelSamplesPerSecond);
+    model.record(1e6, 2.0);
+    EXPECT_TRUE(model.measured());
+    EXPECT_DOUBLE_EQ(model.pixel_samples_per_second(), 5e5);
+    EXPECT_DOUBLE_EQ(model.predict_seconds(1000, 100), 0.2);
+    model.record(1e6, 0.01);  // too short to count
+    EXPECT_DOUBLE_EQ(model.pixel_samples_per_second(), 5e5);
+  }
+  ThroughputModel reloaded(file);
+  EXPECT_TRUE(reloaded.measured());
+  EXPECT_DOUBLE_EQ(reloaded.pixel_samples_per_second(), 5e5);
+  fs::remove_all(dir);
+}
+
+TEST_F(ApplianceShotTest, RenderConvergesAndRelightsWithoutRerendering) {
+  const auto spots = find_spots(analysis().scene, 12);
+  ASSERT_FALSE(spots.empty());
+  CompositeRender render(*analysis_, preset("cube"), spots.front(), tier_spec(appliance::Tier::Draft), 2);
+  std::atomic<bool> cancel{false};
+  int passes = 0;
+  double last_fraction = -1;
+  while (!render.finished() && passes < 20) {
+    render.run_pass(&cancel);
+    ++passes;
+    const auto s = render.snapshot(false);
+    EXPECT_GE(s->converged_fraction, last_fraction) << "convergence never goes back";
+    last_fraction = s->converged_fraction;
+  }
+  ASSERT_TRUE(render.finished());
+  const auto done = render.snapshot(true);
+  EXPECT_DOUBLE_EQ(done->converged_fraction, 1.0);
+  EXPECT_TRUE(done->finished);
+  EXPECT_GT(done->skipped_tiles, 0) << "a small cube cannot reach every tile";
+  EXPECT_FALSE(done->layers.change.empty());
+  EXPECT_EQ(done->depth.size(), analysis().photo_linear.size());
+  EXPECT_GT(render.pixel_samples(), 0);
+  // The composite differs from the photo where the cube stands.
+  const cv::Point base(static_cast<int>(spots.front().pixel.x), static_cast<int>(spots.front().pixel.y));
+  const cv::Rect near_base = cv::Rect(base.x - 4, base.y - 10, 8, 10) & cv::Rect(0, 0, 160, 120);
+  cv::Mat diff;
+  cv::absdiff(done->composite(near_base), analysis().scene_photo(near_base), diff);
+  EXPECT_GT(cv::mean(diff)[0] + cv::mean(diff)[1] + cv::mean(diff)[2], 0.01);
+
+  // No adjustment: the composite as rendered, back in the photo's sRGB-linear space.
+  const cv::Mat plain = adjusted_composite(analysis(), *done, Adjustment{});
+  const cv::Mat expected = capture::response_linear_to_srgb_linear(done->composite, analysis().scene.gamma);
+  cv::absdiff(plain, expected, diff);
+  double max_diff = 0;
+  cv::minMaxLoc(diff.reshape(1), nullptr, &max_diff);
+  EXPECT_LT(max_diff, 1e-3);
+  // One stop more scene light doubles the response-linear photo far from the cube.
+  Adjustment brighter;
+  brighter.scene_ev = 1.0;
+  const cv::Mat lit = capture::srgb_linear_to_response_linear(adjusted_composite(analysis(), *done, brighter),
+                                                              analysis().scene.gamma);
+  const cv::Rect corner(0, 0, 16, 12);
+  const double ratio = cv::mean(lit(corner))[1] / cv::mean(analysis().scene_photo(corner))[1];
+  EXPECT_NEAR(ratio, 2.0, 0.05);
+  // Depth of field blurs: the far corner loses detail with a wide aperture focused on the cube.
+  Adjustment blurred;
+  blurred.aperture_m = 0.04;
+  blurred.focus_m = done->prop_distance_m;
+  const cv::Mat soft = adjusted_composite(analysis(), *done, blurred);
+  for (const cv::Mat& m : {soft, plain}) ASSERT_TRUE(cv::checkRange(m));
+  EXPECT_FALSE(cv::norm(soft, plain, cv::NORM_INF) == 0.0);
+}
+
+TEST_F(ApplianceShotTest, SliderStepsMapToUnitsAndBack) {
+  std::array<int, appliance::kRelightParamCount> steps{};
+  steps[static_cast<size_t>(appliance::RelightParam::SceneLight)] = 4;
+  steps[static_cast<size_t>(appliance::RelightParam::Focus)] = 4;
+  steps[static_cast<size_t>(appliance::RelightParam::Aperture)] = -3;
+  const Adjustment a = adjustment_from_steps(steps, 2.0);
+  EXPECT_DOUBLE_EQ(a.scene_ev, 1.0);
+  EXPECT_DOUBLE_EQ(a.prop_ev, 0.0);
+  EXPECT_DOUBLE_EQ(a.focus_m, 4.0) << "four steps double the focus distance";
+  EXPECT_DOUBLE_EQ(a.aperture_m, 0.0) << "below zero the lens stays a pinhole";
+  EXPECT_EQ(describe_step(appliance::RelightParam::SceneLight, 4, 2.0), "+1.00 EV");
+  EXPECT_EQ(describe_step(appliance::RelightParam::Aperture, 0, 2.0), "pinhole");
+  EXPECT_EQ(describe_step(appliance::RelightParam::Aperture, 2, 2.0), "8 mm");
+  // A nonsense prop distance falls back to a finite focus.
+  EXPECT_TRUE(std::isfinite(adjustment_from_steps(steps, std::nan("")).focus_m));
+}
+
+}  // namespace
+}  // namespace propcam::firmware
