@@ -11,6 +11,7 @@
 #include <thread>
 
 #include "propcam/capture/image_file.h"
+#include "propcam/inference/infer.h"
 
 namespace propcam::firmware {
 namespace fs = std::filesystem;
@@ -229,6 +230,8 @@ ApplianceRunSummary Appliance::run(const std::atomic<bool>& stop) {
   draw_and_present();
   take_snapshot("end");
   summary_.final_state = lower(to_string(machine_.state()));
+  summary_.props.clear();
+  for (const PropEntry& p : props_) summary_.props.push_back(p.name);
   {
     std::lock_guard lock(shared_->mutex);
     summary_.exported = shared_->exported;
@@ -265,8 +268,10 @@ void Appliance::handle_button(const ui_fb::ButtonEvent& event) {
   }
   if (!input) return;
   const int rejected = summary_.rejected_inputs;
+  // Set before handling: a state change presents its screen at once.
+  if (input_pending_since_ns_ == 0) input_pending_since_ns_ = event.time_ns;
   handle(*input);
-  if (summary_.rejected_inputs == rejected && input_pending_since_ns_ == 0) input_pending_since_ns_ = event.time_ns;
+  if (summary_.rejected_inputs != rejected) input_pending_since_ns_ = 0;  // nothing to show
 }
 
 void Appliance::handle(const Event& event) {
@@ -304,6 +309,7 @@ void Appliance::on_state_changed() {
   if (shown_state_ == State::Placing) label += std::string("-") + lower(to_string(shown_step_));
   sd_notify(0, ("STATUS=" + label).c_str());
   if (shown_state_ == State::Adjusting || shown_state_ == State::Exporting) refresh_adjusted();
+  if (shown_state_ == State::Placing && shown_step_ == PlacingStep::Spot) request_preview();
   draw_and_present();
   take_snapshot(label);
   // Last, so a script waiting for this state sees its screen drawn first.
@@ -335,6 +341,7 @@ void Appliance::perform(const Action& action) {
   } else if (const auto* a = std::get_if<MoveCursor>(&action)) {
     const int n = static_cast<int>(spots_.size());
     if (n > 0) spot_index_ = ((spot_index_ + a->delta) % n + n) % n;
+    request_preview();
   } else if (const auto* a = std::get_if<StartRender>(&action)) {
     start_render(a->job, a->prop_index);
   } else if (std::holds_alternative<FinishRender>(action)) {
@@ -360,6 +367,11 @@ void Appliance::start_analysis(JobId job) {
     std::lock_guard lock(shared_->mutex);
     still = shared_->still;
     shared_->stages.clear();
+    for (const char* name : inference::kInferenceStages) {
+      ui_fb::StageLine line;
+      line.name = name;
+      shared_->stages.push_back(line);
+    }
     shared_->analysis.reset();
     shared_->analysis_start = std::chrono::steady_clock::now();
   }
@@ -370,14 +382,19 @@ void Appliance::start_analysis(JobId job) {
     auto on_stage = [&](const std::string& name) {
       if (cancel) throw JobCancelled();
       std::lock_guard lock(shared->mutex);
-      if (!shared->stages.empty()) {
-        shared->stages.back().status = ui_fb::StageLine::Status::Done;
-        shared->stages.back().seconds = seconds_since(stage_start);
+      for (auto& line : shared->stages)
+        if (line.status == ui_fb::StageLine::Status::Running) {
+          line.status = ui_fb::StageLine::Status::Done;
+          line.seconds = seconds_since(stage_start);
+        }
+      auto it = std::find_if(shared->stages.begin(), shared->stages.end(),
+                             [&](const ui_fb::StageLine& l) { return l.name == name; });
+      if (it == shared->stages.end()) {
+        ui_fb::StageLine line;
+        line.name = name;
+        it = shared->stages.insert(shared->stages.end(), line);
       }
-      ui_fb::StageLine line;
-      line.name = name;
-      line.status = ui_fb::StageLine::Status::Running;
-      shared->stages.push_back(line);
+      it->status = ui_fb::StageLine::Status::Running;
       shared->changed = true;
       stage_start = std::chrono::steady_clock::now();
     };
@@ -529,6 +546,52 @@ void Appliance::start_export(JobId job) {
   });
 }
 
+std::string Appliance::preview_key() const {
+  return std::to_string(machine_.model().last_job) + "/" + std::to_string(machine_.model().prop_index) + "/" +
+         std::to_string(spot_index_);
+}
+
+void Appliance::request_preview() {
+  if (spots_.empty() || props_.empty()) return;
+  std::shared_ptr<const Analysis> analysis;
+  {
+    std::lock_guard lock(shared_->mutex);
+    analysis = shared_->analysis;
+    shared_->preview_wanted = preview_key();
+    shared_->preview_spot = spots_[static_cast<size_t>(spot_index_) % spots_.size()];
+    shared_->preview_prop = props_.at(static_cast<size_t>(machine_.model().prop_index) % props_.size());
+  }
+  if (!analysis) return;
+  static std::atomic<JobId> next_preview{kInternalJobBase + (JobId{1} << 60)};
+  std::shared_ptr<Shared> shared = shared_;
+  jobs_->run(next_preview++, [shared, analysis](const std::atomic<bool>&) {
+    std::string key;
+    Spot spot;
+    PropEntry prop;
+    std::shared_ptr<PlacementPreview> world;
+    {
+      std::lock_guard lock(shared->mutex);
+      if (shared->preview_wanted == shared->preview_key) return;  // drawn already (requests coalesce)
+      key = shared->preview_wanted;
+      spot = shared->preview_spot;
+      prop = shared->preview_prop;
+      world = shared->preview_world;
+    }
+    try {
+      if (!world || world->prop_source() != prop.source || world->analysis() != analysis.get())
+        world = std::make_shared<PlacementPreview>(analysis, prop, spot);
+      cv::Mat image = world->render(spot);
+      std::lock_guard lock(shared->mutex);
+      shared->preview_world = world;
+      shared->preview = image;
+      shared->preview_key = key;
+      shared->changed = true;
+    } catch (const std::exception& e) {
+      spdlog::warn("placement preview: {}", e.what());
+    }
+  });
+}
+
 void Appliance::poll_usb() {
   last_usb_poll_ns_ = now_ns();
   int waiting = 0;
@@ -601,29 +664,31 @@ void Appliance::draw_and_present() {
   dirty_ = false;
   if (input_pending_since_ns_ != 0) {
     summary_.input_to_screen_ms.push_back(1e-6 * static_cast<double>(last_present_ns_ - input_pending_since_ns_));
+    spdlog::debug("button to screen {:.1f} ms ({})", summary_.input_to_screen_ms.back(), to_string(machine_.state()));
     input_pending_since_ns_ = 0;
   }
 }
 
 void Appliance::take_snapshot(const std::string& label) {
   if (options_.snapshots_dir.empty()) return;
-  // What the screen shows: a file display's framebuffer decoded back, else the canvas.
-  cv::Mat rgb;
-  if (auto* file = dynamic_cast<ui_fb::FileDisplay*>(display_.get()); file && file->frames_presented() > 0)
-    rgb = file->screen_contents().pixels();
-  else
-    rgb = canvas_->pixels();
   char name[96];
   std::snprintf(name, sizeof name, "%03zu-%s.png", summary_.snapshots.size() + 1, label.c_str());
   const fs::path path = options_.snapshots_dir / name;
   const fs::path tmp = options_.snapshots_dir / (std::string(".") + name + ".tmp.png");
-  cv::Mat bgr;
-  cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
-  if (!cv::imwrite(tmp.string(), bgr)) {
-    spdlog::warn("snapshot {}: cannot write", path.string());
+  std::error_code ec;
+  // A file display has just written what the screen shows: copy it.
+  if (auto* file = dynamic_cast<ui_fb::FileDisplay*>(display_.get()); file && !file->last_snapshot().empty()) {
+    fs::copy_file(file->last_snapshot(), tmp, fs::copy_options::overwrite_existing, ec);
+  } else {
+    cv::Mat bgr;
+    cv::cvtColor(canvas_->pixels(), bgr, cv::COLOR_RGB2BGR);
+    if (!cv::imwrite(tmp.string(), bgr)) ec = std::make_error_code(std::errc::io_error);
+  }
+  if (!ec) fs::rename(tmp, path, ec);
+  if (ec) {
+    spdlog::warn("snapshot {}: {}", path.string(), ec.message());
     return;
   }
-  fs::rename(tmp, path);
   summary_.snapshots.push_back(path);
 }
 

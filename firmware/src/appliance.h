@@ -51,6 +51,7 @@ struct ApplianceRunSummary {
   std::vector<std::filesystem::path> exported;  // files written to the stick
   int spooled = 0;
   std::string final_state;
+  std::vector<std::string> props;  // the carousel at the end (presets, then the stick's)
   int rejected_inputs = 0;
   // From each accepted button event (debounced) to the screen that shows its
   // effect presented, milliseconds.
@@ -84,6 +85,8 @@ class Appliance {
   void start_analysis(appliance::JobId job);
   void start_render(appliance::JobId job, int prop_index);
   void start_export(appliance::JobId job);
+  void request_preview();
+  std::string preview_key() const;  // the prop and spot the placement screen shows
   void on_state_changed();
   void refresh_adjusted();
   void poll_usb();
@@ -97,8 +100,6 @@ class Appliance {
   ui_fb::ScriptButtonInput* script_ = nullptr;  // buttons_ when it is a script
   std::vector<PropEntry> props_;
   mutable std::vector<std::optional<render::Mesh>> prop_meshes_;  // loaded on first use, for footprints
-  mutable cv::Mat render_shown_;                 // the render snapshot as linear sRGB, for the screen
-  mutable std::shared_ptr<const RenderSnapshot> render_shown_from_;
   appliance::ApplianceStateMachine machine_;
   EventQueue events_;
   std::shared_ptr<Shared> shared_;

@@ -37,6 +37,13 @@ struct ApplianceShared {
   std::string usb_message = "USB: looking";
   std::optional<std::vector<PropEntry>> new_props;  // the stick's props changed
   std::filesystem::path new_props_root;
+  // The placement preview: what is asked for (latest wins), what is drawn,
+  // and its world, which only the worker touches.
+  std::string preview_wanted, preview_key;
+  Spot preview_spot;
+  PropEntry preview_prop;
+  cv::Mat preview;
+  std::shared_ptr<PlacementPreview> preview_world;
   bool changed = false;
 };
 

@@ -254,6 +254,54 @@ std::vector<cv::Point2d> footprint_outline(const inference::SceneModel& scene, c
   return outline;
 }
 
+// ---------------------------------------------------------------- preview
+namespace {
+
+render::PropPlacement placement_at(const Spot& spot, double height_m) {
+  render::PropPlacement p;
+  p.pixel_u = spot.pixel.x;
+  p.pixel_v = spot.pixel.y;
+  p.height_m = height_m;
+  return p;
+}
+
+// The preview's shading: ambient plus a key from above and behind the camera.
+constexpr float kPreviewAmbient = 0.35f;
+constexpr float kPreviewKey = 0.65f;
+
+}  // namespace
+
+PlacementPreview::PlacementPreview(std::shared_ptr<const Analysis> analysis, const PropEntry& prop,
+                                   const Spot& first_spot)
+    : analysis_(std::move(analysis)), prop_source_(prop.source) {
+  prop_ = load_prop(prop.source);
+  height_m_ = prop.natural_height_m > 0 ? prop.natural_height_m : natural_height(prop.source, prop_);
+  world_ = build_composite_world(analysis_->scene, prop_, placement_at(first_spot, height_m_));
+}
+
+cv::Mat PlacementPreview::render(const Spot& spot) {
+  cv::Mat out = analysis_->photo_rgb8.clone();
+  try {
+    const render::PlacedProp placed = render::place_prop(prop_, world_.camera, *world_.scene, placement_at(spot, height_m_));
+    world_.scene->set_prop_transform(world_.prop_index, placed.world_from_prop);
+  } catch (const std::invalid_argument&) {
+    return out;  // no support there: the photo alone
+  }
+  const render::PrimaryBuffers primary = render::render_primary_buffers(*world_.scene, world_.camera, true);
+  const Eigen::Vector3f to_key = (world_.camera.R_world_from_cam * Eigen::Vector3d(0, -1, -1)).normalized().cast<float>();
+  for (int y = 0; y < out.rows && y < primary.prop_coverage.rows; ++y)
+    for (int x = 0; x < out.cols && x < primary.prop_coverage.cols; ++x) {
+      if (!primary.prop_coverage.at<std::uint8_t>(y, x)) continue;
+      const cv::Vec3f n = primary.normal.at<cv::Vec3f>(y, x), a = primary.albedo.at<cv::Vec3f>(y, x);
+      const float lambert = std::max(0.f, n[0] * to_key.x() + n[1] * to_key.y() + n[2] * to_key.z());
+      const float shade = kPreviewAmbient + kPreviewKey * lambert;
+      cv::Vec3b& px = out.at<cv::Vec3b>(y, x);
+      for (int k = 0; k < 3; ++k)
+        px[k] = static_cast<std::uint8_t>(std::lround(255.f * capture::linear_to_srgb(std::clamp(a[k] * shade, 0.f, 1.f))));
+    }
+  return out;
+}
+
 // ---------------------------------------------------------------- tiers
 
 TierSpec tier_spec(Tier tier) {
@@ -378,6 +426,7 @@ double CompositeRender::pixel_samples() const {
 std::shared_ptr<const RenderSnapshot> CompositeRender::snapshot(bool final_layers) const {
   auto s = std::make_shared<RenderSnapshot>();
   s->composite = session_->composite();
+  s->display = capture::response_linear_to_srgb_linear(s->composite, analysis_->scene.gamma);
   s->tiles = session_->tiles();
   int affected = 0, done = 0;
   double to_good = 0, to_done = 0, busy_seconds = 0;

@@ -80,6 +80,28 @@ std::vector<Spot> find_spots(const inference::SceneModel& scene, int max_spots);
 std::vector<cv::Point2d> footprint_outline(const inference::SceneModel& scene, const Spot& spot,
                                            const render::Mesh& prop, double height_m);
 
+// A quick look at the prop where it would stand, for the placement screen:
+// the prop seen by one ray per pixel, shaded by its albedo under a light
+// from above and behind the camera, drawn over the photo. The world (depth
+// mesh, acceleration structure) is built once per prop; moving the prop to
+// another spot only re-places the instance.
+class PlacementPreview {
+ public:
+  // Throws std::invalid_argument as build_composite_world does.
+  PlacementPreview(std::shared_ptr<const Analysis> analysis, const PropEntry& prop, const Spot& first_spot);
+  // CV_8UC3 RGB at the photo's size; the photo alone when the spot has no support.
+  cv::Mat render(const Spot& spot);
+  const std::string& prop_source() const { return prop_source_; }
+  const Analysis* analysis() const { return analysis_.get(); }
+
+ private:
+  std::shared_ptr<const Analysis> analysis_;
+  std::string prop_source_;
+  double height_m_ = 0;
+  render::Mesh prop_;
+  CompositeWorld world_;
+};
+
 // ---------------------------------------------------------------- quality tiers
 
 struct TierSpec {
@@ -114,6 +136,7 @@ class ThroughputModel {
 // What the screen shows of a render in flight; immutable once published.
 struct RenderSnapshot {
   cv::Mat composite;                 // CV_32FC3, response-linear (before relighting)
+  cv::Mat display;                   // the same in linear sRGB, for the screen (made on the worker)
   std::vector<render::TileStatus> tiles;
   double converged_fraction = 0.0;   // done affected tiles / affected tiles
   double elapsed_seconds = 0.0;

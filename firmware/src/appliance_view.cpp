@@ -5,7 +5,6 @@
 
 #include "appliance.h"
 #include "appliance_shared.h"
-#include "propcam/capture/image_file.h"
 
 namespace propcam::firmware {
 using namespace appliance;
@@ -44,6 +43,8 @@ ui_fb::ScreenView Appliance::build_view() const {
   std::shared_ptr<const RenderSnapshot> render;
   cv::Mat still;
   double affected_share = 0, rate_pixel_samples = 0;
+  cv::Mat preview;
+  const std::string wanted_preview = preview_key();
   {
     std::lock_guard lock(shared_->mutex);
     analysis = shared_->analysis;
@@ -56,17 +57,11 @@ ui_fb::ScreenView Appliance::build_view() const {
     view.export_text = shared_->export_text;
     view.export_succeeded = shared_->export_ok;
     affected_share = shared_->affected_share;
+    if (shared_->preview_key == wanted_preview) preview = shared_->preview;
     rate_pixel_samples = throughput_->pixel_samples_per_second();
   }
   const cv::Mat photo = analysis ? analysis->photo_rgb8 : still;
-  auto render_image = [&]() -> cv::Mat {
-    if (!render || !analysis) return photo;
-    if (render != render_shown_from_) {
-      render_shown_ = capture::response_linear_to_srgb_linear(render->composite, analysis->scene.gamma);
-      render_shown_from_ = render;
-    }
-    return render_shown_;
-  };
+  auto render_image = [&]() -> cv::Mat { return render && !render->display.empty() ? render->display : photo; };
   const std::string prop_name =
       model.prop_index < static_cast<int>(props_.size()) ? props_[static_cast<size_t>(model.prop_index)].name : "";
 
@@ -114,6 +109,7 @@ ui_fb::ScreenView Appliance::build_view() const {
         case PlacingStep::Spot: {
           view.kind = ScreenKind::Placement;
           view.title = "Place the " + prop_name;
+          if (!preview.empty()) view.image = preview;
           for (const Spot& s : spots_) view.spots.push_back(s.pixel);
           if (!spots_.empty() && analysis) {
             const size_t index = static_cast<size_t>(spot_index_) % spots_.size();

@@ -69,6 +69,7 @@ int run_run_command(const RunArgs& a) {
   out["snapshots"] = nlohmann::json::array();
   for (const auto& s : summary.snapshots) out["snapshots"].push_back(s.string());
   out["input_to_screen_ms"] = summary.input_to_screen_ms;
+  out["props"] = summary.props;
   out["exported"] = nlohmann::json::array();
   for (const auto& e : summary.exported) out["exported"].push_back(e.string());
   if (a.json_out) {

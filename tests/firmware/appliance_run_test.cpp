@@ -238,6 +238,36 @@ await viewfinder 10s
   EXPECT_FALSE(snapshot(r.summary, "fault").empty());
 }
 
+TEST(ApplianceRun, PropsOnTheStickJoinTheCarousel) {
+  const fs::path work = temp_dir("usb_props");
+  fs::create_directories(work / "usb/props");
+  // A 30 cm box, and a file that is no mesh (left out, not fatal).
+  std::ofstream(work / "usb/props/box.obj") << R"(v -0.15 0 -0.15
+v 0.15 0 -0.15
+v 0.15 0 0.15
+v -0.15 0 0.15
+v -0.15 0.3 -0.15
+v 0.15 0.3 -0.15
+v 0.15 0.3 0.15
+v -0.15 0.3 0.15
+f 1 2 3 4
+f 8 7 6 5
+f 1 5 6 2
+f 2 6 7 3
+f 3 7 8 4
+f 4 8 5 1
+)";
+  std::ofstream(work / "usb/props/broken.obj") << "this is not a mesh\nf 1 2 3\n";
+  const fs::path script = write_script(work, "wait 1s\n");
+  const SessionRun r = run_appliance("--board virtual --script " + script.string() + " --usb " + (work / "usb").string(),
+                                     work);
+  ASSERT_EQ(r.exit_code, 0) << r.log;
+  const auto props = r.summary["props"].get<std::vector<std::string>>();
+  ASSERT_EQ(props.size(), 9u) << r.summary.dump(2);
+  EXPECT_EQ(props.back(), "box");
+  EXPECT_NE(r.log.find("broken.obj"), std::string::npos) << "the bad file is named in the log";
+}
+
 TEST(ApplianceFaults, AScriptWaitingForAStateThatNeverComesFailsClearly) {
   const fs::path work = temp_dir("await_timeout");
   const fs::path script = write_script(work, "await rendering 2s\n");

@@ -89,6 +89,31 @@ TEST_F(ApplianceShotTest, FootprintSurroundsTheSpot) {
   EXPECT_GT(cv::contourArea(big_poly), 2.5 * cv::contourArea(poly));
 }
 
+TEST_F(ApplianceShotTest, ThePreviewShowsThePropWhereItWouldStand) {
+  const auto spots = find_spots(analysis().scene, 12);
+  ASSERT_GE(spots.size(), 2u);
+  PlacementPreview preview(*analysis_, preset("cube"), spots[0]);
+  for (const Spot& spot : {spots[0], spots[1]}) {
+    const cv::Mat image = preview.render(spot);
+    ASSERT_EQ(image.size(), analysis().photo_rgb8.size());
+    ASSERT_EQ(image.type(), CV_8UC3);
+    // Everything it drew lies around the spot, above the base (it stands on the floor).
+    cv::Mat any = cv::Mat::zeros(image.size(), CV_8U);
+    for (int y = 0; y < image.rows; ++y)
+      for (int x = 0; x < image.cols; ++x)
+        if (image.at<cv::Vec3b>(y, x) != analysis().photo_rgb8.at<cv::Vec3b>(y, x)) any.at<std::uint8_t>(y, x) = 255;
+    ASSERT_GT(cv::countNonZero(any), 10) << "the cube is drawn";
+    const cv::Rect box = cv::boundingRect(any);
+    EXPECT_TRUE(box.contains(cv::Point(static_cast<int>(spot.pixel.x), box.y + box.height / 2)))
+        << "drawn at " << box << " for a spot at " << spot.pixel;
+    // Nothing below its footprint (the front edge of the base is the lowest thing seen).
+    double lowest = spot.pixel.y;
+    for (const auto& p : footprint_outline(analysis().scene, spot, load_prop("cube"), preset("cube").natural_height_m))
+      lowest = std::max(lowest, p.y);
+    EXPECT_LE(box.y + box.height, lowest + 2) << "nothing below the base";
+  }
+}
+
 TEST_F(ApplianceShotTest, TiersCostMoreForLessError) {
   const TierSpec draft = tier_spec(appliance::Tier::Draft), good = tier_spec(appliance::Tier::Good),
                  final = tier_spec(appliance::Tier::Final);

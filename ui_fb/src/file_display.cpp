@@ -16,6 +16,8 @@ namespace {
 
 // Writes next to the target and renames over it: rename within one folder is
 // atomic, so whoever watches the snapshot sees the old or the new frame, whole.
+constexpr int kSnapshotPngCompression = 1;
+
 void write_png_atomically(const Canvas& image, const std::filesystem::path& path) {
   static std::atomic<unsigned> temp_counter{0};
   // Hidden, and unique per process and call so concurrent writers never collide.
@@ -26,7 +28,10 @@ void write_png_atomically(const Canvas& image, const std::filesystem::path& path
   // Asked for by format name, since the temporary name has no .png extension.
   auto output = OIIO::ImageOutput::create("png");
   if (!output) throw std::runtime_error("ui_fb: OpenImageIO has no PNG writer: " + OIIO::geterror());
-  const OIIO::ImageSpec spec(image.width(), image.height(), 3, OIIO::TypeDesc::UINT8);
+  OIIO::ImageSpec spec(image.width(), image.height(), 3, OIIO::TypeDesc::UINT8);
+  // A snapshot is written on every present: speed matters more than size
+  // (level 1 is about 3x faster than zlib's default and ~15% larger).
+  spec.attribute("png:compressionLevel", kSnapshotPngCompression);
   bool written = output->open(temp.string(), spec);
   if (written) {
     written = output->write_image(OIIO::TypeDesc::UINT8, image.pixels().data, 3,

@@ -78,6 +78,11 @@ SceneModel complete_scene(const cv::Mat& photo, const GeometryEstimate& geometry
 SceneModel infer_scene(const cv::Mat& photo_linear, const InferenceOptions& options = {});
 
 constexpr int kMinPhotoSide = 16;
+
+// The names InferenceOptions::on_stage is called with, in order (a screen
+// lists them as pending before the analysis starts).
+inline constexpr const char* kInferenceStages[] = {"lines", "camera", "scene_class", "orientation_map", "geometry",
+                                                   "depth_transfer", "depth", "albedo", "lighting"};
 // Linear radiance above this is clipped (HDR inputs, and infinities).
 constexpr double kMaxPhotoRadiance = 1e4;
 
