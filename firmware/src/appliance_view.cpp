@@ -22,16 +22,6 @@ ButtonHint hint(Button button, std::string label, bool long_press = false) {
   return h;
 }
 
-const char* relight_name(RelightParam p) {
-  switch (p) {
-    case RelightParam::SceneLight: return "scene light";
-    case RelightParam::PropLight: return "prop light";
-    case RelightParam::Focus: return "focus";
-    case RelightParam::Aperture: return "aperture";
-  }
-  return "?";
-}
-
 constexpr Tier kTiers[] = {Tier::Draft, Tier::Good, Tier::Final};
 
 }  // namespace
@@ -185,7 +175,7 @@ ui_fb::ScreenView Appliance::build_view() const {
       for (int i = 0; i < kRelightParamCount; ++i) {
         const auto param = static_cast<RelightParam>(i);
         ui_fb::SliderView s;
-        s.name = relight_name(param);
+        s.name = to_string(param);
         s.value = model.relight_values[static_cast<size_t>(i)];
         s.min = -kRelightMaxSteps;
         s.max = kRelightMaxSteps;

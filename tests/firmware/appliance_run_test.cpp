@@ -15,6 +15,7 @@
 #include <opencv2/imgproc.hpp>
 #include <regex>
 
+#include "cli_run.h"
 #include "propcam/ui_fb/screens.h"
 
 namespace {
@@ -46,15 +47,11 @@ SessionRun run_appliance(const std::string& args, const fs::path& work) {
   const std::string cmd = std::string(PROPCAM_CLI) + " run --json --threads 2 --data " + shared_data_dir().string() +
                           " " + args + " 2>" + log.string();
   SessionRun r;
-  std::string out;
-  FILE* pipe = popen(cmd.c_str(), "r");
-  std::array<char, 4096> buf{};
-  while (fgets(buf.data(), buf.size(), pipe)) out += buf.data();
-  const int status = pclose(pipe);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  const propcam::test::CliRun run = propcam::test::run_shell(cmd);
+  r.exit_code = run.exit_code;
   std::ifstream in(log);
   r.log.assign(std::istreambuf_iterator<char>(in), {});
-  if (r.exit_code == 0) r.summary = json::parse(out);
+  if (r.exit_code == 0) r.summary = json::parse(run.out);
   return r;
 }
 

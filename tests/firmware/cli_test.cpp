@@ -14,6 +14,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include "cli_run.h"
 #include "propcam/capture/image_file.h"
 #include "propcam/inference/depth_transfer.h"
 #include "propcam/inference/light_classifier.h"
@@ -24,21 +25,8 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-struct CliRun {
-  int exit_code;
-  std::string out;  // stdout and stderr
-};
-
-CliRun propcam(const std::string& args) {
-  const std::string cmd = std::string(PROPCAM_CLI) + " " + args + " 2>&1";
-  CliRun r{0, ""};
-  FILE* pipe = popen(cmd.c_str(), "r");
-  std::array<char, 4096> buf{};
-  while (fgets(buf.data(), buf.size(), pipe)) r.out += buf.data();
-  const int status = pclose(pipe);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
+using propcam::test::CliRun;
+using propcam::test::propcam;
 
 json json_tail(const std::string& text) {
   // The JSON document is the last thing printed (progress goes before it).

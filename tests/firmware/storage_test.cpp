@@ -9,6 +9,7 @@
 #include <regex>
 #include <sys/wait.h>
 
+#include "cli_run.h"
 #include "propcam/capture/image_file.h"
 #include "storage_names.h"
 #include "storage_test_support.h"
@@ -290,21 +291,8 @@ TEST(StorageUsb, ConfigLocations) {
 
 // ---- the CLI, end to end ----
 
-struct CliRun {
-  int exit_code;
-  std::string out;
-};
-
-CliRun propcam(const std::string& args) {
-  const std::string cmd = std::string(PROPCAM_CLI) + " " + args + " 2>&1";
-  CliRun r{0, ""};
-  FILE* pipe = popen(cmd.c_str(), "r");
-  std::array<char, 4096> buf{};
-  while (fgets(buf.data(), buf.size(), pipe)) r.out += buf.data();
-  const int status = pclose(pipe);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
+using propcam::test::CliRun;
+using propcam::test::propcam;
 
 json json_of(const std::string& text) { return json::parse(text.substr(text.find('{'))); }
 
