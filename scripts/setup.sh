@@ -5,6 +5,8 @@ set -euo pipefail
 packages=(
   # toolchain
   build-essential cmake ninja-build pkg-config git
+  # clang with libFuzzer and the sanitizer runtimes (tests/fuzz, scripts/fuzz.sh)
+  clang libclang-rt-14-dev
   # hardware backends named by the design
   libcamera-dev libv4l-dev libgpiod-dev
   # DRM/KMS display for boards without fbdev emulation (ui_fb DrmDisplay)

@@ -2,6 +2,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <stdexcept>
 
 #include "propcam/capture/image_file.h"
@@ -20,6 +21,32 @@ json vec(const Eigen::Vector3d& v) { return json::array({v.x(), v.y(), v.z()}); 
 Eigen::Vector3d vec3(const json& j, const char* what) {
   if (!j.is_array() || j.size() != 3) throw std::runtime_error(std::string("scene.json: ") + what + " is not [x,y,z]");
   return {j[0].get<double>(), j[1].get<double>(), j[2].get<double>()};
+}
+
+// An int field. nlohmann converts a float (1e300) to int with a plain cast,
+// which is undefined out of range, so only integers that fit are accepted.
+int json_int(const json& j, const char* what) {
+  constexpr auto kMin = std::numeric_limits<int>::min();
+  constexpr auto kMax = std::numeric_limits<int>::max();
+  bool fits = false;
+  if (j.is_number_unsigned()) fits = j.get<std::uint64_t>() <= static_cast<std::uint64_t>(kMax);
+  else if (j.is_number_integer()) fits = j.get<std::int64_t>() >= kMin && j.get<std::int64_t>() <= kMax;
+  if (!fits) throw std::runtime_error(std::string("scene.json: ") + what + " is not an integer in int's range");
+  return j.get<int>();
+}
+
+int json_int_or(const json& object, const char* key, int fallback) {
+  return object.contains(key) ? json_int(object.at(key), key) : fallback;
+}
+
+// A file the scene names must lie inside its folder (lights/ibl_0.exr).
+fs::path file_inside(const fs::path& dir, const std::string& name) {
+  const fs::path relative(name);
+  bool escapes = name.empty() || relative.is_absolute();
+  for (const auto& part : relative)
+    if (part == "..") escapes = true;
+  if (escapes) throw std::runtime_error("scene.json: file '" + name + "' is not inside the scene folder");
+  return dir / relative;
 }
 
 LightSource::Type light_type_from_string(const std::string& s) {
@@ -193,8 +220,8 @@ SceneModel load_scene(const std::string& folder) {
   }
   SceneModel s;
   try {
-    s.width = j.at("image").at("width");
-    s.height = j.at("image").at("height");
+    s.width = json_int(j.at("image").at("width"), "image width");
+    s.height = json_int(j.at("image").at("height"), "image height");
     s.fx = j.at("K").at("fx");
     s.fy = j.at("K").at("fy");
     s.cx = j.at("K").at("cx");
@@ -219,7 +246,7 @@ SceneModel load_scene(const std::string& folder) {
       }
       if (l.type == LightSource::Type::Ibl) {
         l.file = lj.at("file");
-        cv::Mat env = capture::read_image_float((dir / l.file).string());
+        cv::Mat env = capture::read_image_float(file_inside(dir, l.file).string());
         if (env.channels() != 3) throw std::runtime_error("environment map must have 3 channels");
         l.environment = env;
       }
@@ -228,7 +255,7 @@ SceneModel load_scene(const std::string& folder) {
     for (const json& pj : j.value("planes", json::array())) {
       SupportPlane p{pj.at("name"), vec3(pj.at("normal"), "normal"), pj.at("offset")};
       if (pj.contains("pixels")) {
-        p.pixels = pj.at("pixels");
+        p.pixels = json_int(pj.at("pixels"), "pixels");
         p.extent_min = vec3(pj.at("extent_min"), "extent_min");
         p.extent_max = vec3(pj.at("extent_max"), "extent_max");
         if (p.pixels < 0) throw std::runtime_error("a plane's pixel count is negative");
@@ -240,7 +267,7 @@ SceneModel load_scene(const std::string& folder) {
       r.stage = rj.value("stage", "");
       r.usable = rj.value("usable", true);
       r.why = rj.value("why", "");
-      r.iterations = rj.value("iterations", 0);
+      r.iterations = json_int_or(rj, "iterations", 0);
       r.seconds = rj.value("seconds", 0.0);
       r.error = rj.value("error", -1.0);
       r.details = rj.value("details", json::object());

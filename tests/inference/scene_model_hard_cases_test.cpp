@@ -1,0 +1,86 @@
+// scene.json inputs the fuzzer (tests/fuzz/fuzz_scene) turned up: each is
+// rejected with a clear std::runtime_error, never undefined behaviour.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <stdexcept>
+#include <string>
+#include <unistd.h>
+
+#include "propcam/inference/scene_model.h"
+
+namespace propcam::inference {
+namespace {
+namespace fs = std::filesystem;
+
+// A valid scene.json; each argument replaces one part of it.
+std::string scene_json(const std::string& image = R"("width": 64, "height": 48)",
+                       const std::string& light = R"({"type": "point", "intensity": [1, 1, 1]})",
+                       const std::string& plane_pixels = "900", const std::string& iterations = "3") {
+  return R"({"image": {)" + image + R"(}, "K": {"fx": 60, "fy": 60, "cx": 32, "cy": 24},
+    "R_world_from_cam": [[1, 0, 0], [0, 0, 1], [0, -1, 0]], "camera_height_m": 1.5,
+    "lights": [)" + light + R"(],
+    "planes": [{"name": "floor", "normal": [0, 0, 1], "offset": 0, "pixels": )" + plane_pixels +
+         R"(, "extent_min": [-2, 0, 0], "extent_max": [2, 4, 0]}],
+    "reports": [{"stage": "geometry", "iterations": )" + iterations + "}]}";
+}
+
+class SceneJsonHardCases : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("propcam_scene_hard_" + std::to_string(::getpid()));
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  SceneModel load(const std::string& text) {
+    std::ofstream(dir_ / "scene.json") << text;
+    return load_scene(dir_.string());
+  }
+  std::string error_of(const std::string& text) {
+    try {
+      load(text);
+    } catch (const std::runtime_error& e) {
+      return e.what();
+    }
+    return "(loaded)";
+  }
+
+  fs::path dir_;
+};
+
+TEST_F(SceneJsonHardCases, TheValidSceneLoads) {
+  const SceneModel scene = load(scene_json());
+  EXPECT_EQ(scene.width, 64);
+  EXPECT_EQ(scene.planes.at(0).pixels, 900);
+  EXPECT_EQ(scene.reports.at(0).iterations, 3);
+}
+
+// Found by fuzz_scene: nlohmann cast 1e300 to int (UBSan float-cast-overflow).
+TEST_F(SceneJsonHardCases, AnImageWidthBeyondIntIsRejected) {
+  EXPECT_NE(error_of(scene_json(R"("width": 1e300, "height": 48)")).find("image width"), std::string::npos);
+  EXPECT_NE(error_of(scene_json(R"("width": 64, "height": 4294967296)")).find("image height"),
+            std::string::npos);
+  EXPECT_NE(error_of(scene_json(R"("width": 64.5, "height": 48)")).find("not an integer"), std::string::npos);
+}
+
+TEST_F(SceneJsonHardCases, PlanePixelsAndIterationsBeyondIntAreRejected) {
+  const std::string light = R"({"type": "point", "intensity": [1, 1, 1]})";
+  EXPECT_NE(error_of(scene_json(R"("width": 64, "height": 48)", light, "-1e300")).find("pixels"),
+            std::string::npos);
+  EXPECT_NE(error_of(scene_json(R"("width": 64, "height": 48)", light, "900", "1e19")).find("iterations"),
+            std::string::npos);
+}
+
+TEST_F(SceneJsonHardCases, AnEnvironmentMapOutsideTheFolderIsRejected) {
+  for (const char* file : {"../../etc/passwd", "/etc/passwd", "lights/../../x.exr", ""}) {
+    const std::string light = std::string(R"({"type": "ibl", "intensity": [1, 1, 1], "file": ")") + file + "\"}";
+    EXPECT_NE(error_of(scene_json(R"("width": 64, "height": 48)", light)).find("not inside the scene folder"),
+              std::string::npos)
+        << file;
+  }
+}
+
+}  // namespace
+}  // namespace propcam::inference
