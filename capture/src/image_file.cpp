@@ -6,6 +6,7 @@
 #include <array>
 #include <cmath>
 #include <filesystem>
+#include <cstddef>
 #include <limits>
 #include <stdexcept>
 #include <unistd.h>
@@ -169,12 +170,34 @@ ExifLens read_exif_focal(const std::string& path) {
   return lens;
 }
 
+namespace {
+
+// The largest image read_image_float reads, its pixels as float: a 12-MP
+// photo is ~150 MiB, an 8k x 4k RGB panorama ~400 MiB. A corrupt header can
+// claim any size and the pixels are allocated before they are read, so
+// larger claims are refused.
+constexpr std::size_t kMaxImageFloatBytes = std::size_t{512} << 20;
+
+void check_image_size(const std::string& path, int width, int height, int channels) {
+  if (channels > CV_CN_MAX)
+    throw std::runtime_error("image '" + path + "' has " + std::to_string(channels) + " channels (at most " +
+                             std::to_string(CV_CN_MAX) + ")");
+  const std::size_t bytes = std::size_t(width) * std::size_t(height) * std::size_t(channels) * sizeof(float);
+  if (bytes > kMaxImageFloatBytes)
+    throw std::runtime_error("image '" + path + "' is too large: " + std::to_string(width) + "x" +
+                             std::to_string(height) + "x" + std::to_string(channels) + " (at most " +
+                             std::to_string(kMaxImageFloatBytes >> 20) + " MiB as float)");
+}
+
+}  // namespace
+
 cv::Mat read_image_float(const std::string& path) {
   auto input = OIIO::ImageInput::open(path);
   if (!input) throw std::runtime_error("cannot open image '" + path + "': " + OIIO::geterror());
   const OIIO::ImageSpec& spec = input->spec();
   if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0)
     throw std::runtime_error("image '" + path + "' has no pixels");
+  check_image_size(path, spec.width, spec.height, spec.nchannels);
   cv::Mat image(spec.height, spec.width, CV_32FC(spec.nchannels));
   if (!input->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, image.data))
     throw std::runtime_error("cannot read image '" + path + "': " + input->geterror());

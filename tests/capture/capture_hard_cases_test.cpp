@@ -15,6 +15,7 @@
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 
+#include "propcam/capture/image_file.h"
 #include "propcam/capture/pixel_format.h"
 #include "propcam/capture/recording.h"
 #include "propcam/capture/replay_source.h"
@@ -360,6 +361,33 @@ TEST(CaptureHardCases, ReplayedBytesStayBoundAndShared) {
   const Frame c = *source.next_frame(milliseconds(0)).frame;
   EXPECT_EQ(a.buffer.get(), c.buffer.get());
   EXPECT_EQ(c.metadata.sequence, 2u);
+}
+
+// Found by tests/fuzz/fuzz_image: a 69-byte PNG whose header claims
+// 60000x60000 RGBA16. The float pixels (57 GB) were allocated before a row
+// was read; now the size is refused first, naming the file.
+TEST(CaptureHardCases, AnImageHeaderClaimingAHugeSizeIsRefusedUnread) {
+  const unsigned char png[] = {
+    0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a, 0x00, 0x00, 0x00, 0x0d,
+    0x49, 0x48, 0x44, 0x52, 0x00, 0x00, 0xea, 0x60, 0x00, 0x00, 0xea, 0x60,
+    0x10, 0x06, 0x00, 0x00, 0x00, 0xd0, 0x42, 0xa9, 0x01, 0x00, 0x00, 0x00,
+    0x0c, 0x49, 0x44, 0x41, 0x54, 0x78, 0x9c, 0x63, 0x60, 0xa0, 0x0c, 0x00,
+    0x00, 0x00, 0x40, 0x00, 0x01, 0xb7, 0x34, 0x7c, 0xef, 0x00, 0x00, 0x00,
+    0x00, 0x49, 0x45, 0x4e, 0x44, 0xae, 0x42, 0x60, 0x82,
+  };
+  const fs::path dir = fresh_dir("huge_header");
+  fs::create_directories(dir);
+  const fs::path path = dir / "huge.png";
+  std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(png), sizeof png);
+  for (auto load : {&read_image_float, &load_photo_linear}) {
+    try {
+      load(path.string());
+      ADD_FAILURE() << "a 60000x60000 header was read";
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find("too large"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("huge.png"), std::string::npos) << e.what();
+    }
+  }
 }
 
 }  // namespace
