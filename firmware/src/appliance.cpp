@@ -35,8 +35,6 @@ constexpr int kMaxSpots = 12;
 constexpr int kThumbnailSize = 128;
 // The worker runs below the UI thread's priority.
 constexpr int kWorkerNiceness = 5;
-// Ids of internal jobs (spool flushes) the state machine never sees.
-constexpr JobId kInternalJobBase = JobId{1} << 62;
 
 std::int64_t now_ns() { return ui_fb::monotonic_now_ns(); }
 
@@ -562,9 +560,8 @@ void Appliance::request_preview() {
     shared_->preview_prop = props_.at(static_cast<size_t>(machine_.model().prop_index) % props_.size());
   }
   if (!analysis) return;
-  static std::atomic<JobId> next_preview{kInternalJobBase + (JobId{1} << 60)};
   std::shared_ptr<Shared> shared = shared_;
-  jobs_->run(next_preview++, [shared, analysis](const std::atomic<bool>&) {
+  jobs_->run(next_internal_job_++, [shared, analysis](const std::atomic<bool>&) {
     std::string key;
     Spot spot;
     PropEntry prop;
@@ -602,11 +599,10 @@ void Appliance::poll_usb() {
   // The stick is looked at and the spool flushed on the worker: the
   // Exporter is used from one thread only, and a slow stick never stalls the UI.
   if (!jobs_->idle()) return;
-  static std::atomic<JobId> next_internal{kInternalJobBase};
   std::shared_ptr<Shared> shared = shared_;
   const fs::path listed_root = props_usb_root_;
   const fs::path thumbnails = thumbnail_dir_;
-  jobs_->run(next_internal++, [this, shared, waiting, listed_root, thumbnails](const std::atomic<bool>&) {
+  jobs_->run(next_internal_job_++, [this, shared, waiting, listed_root, thumbnails](const std::atomic<bool>&) {
     const UsbStatus usb = exporter_->usb_status();
     // A stick came or went: its props/ folder joins or leaves the carousel.
     const fs::path root = usb.usable() ? usb.root : fs::path();

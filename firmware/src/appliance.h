@@ -112,6 +112,9 @@ class Appliance {
   std::vector<Spot> spots_;
   int spot_index_ = 0;
   appliance::JobId render_job_ = 0;
+  // Ids of the jobs the state machine never sees (preview, stick poll), far
+  // above the machine's own so the two never meet.
+  appliance::JobId next_internal_job_ = appliance::JobId{1} << 62;
   std::shared_ptr<std::atomic<bool>> keep_render_;  // FinishRender: the stopped render is kept
   cv::Mat adjusted_;        // CV_32FC3 linear sRGB: the composite as shown in Adjusting/Exporting
   std::shared_ptr<const RenderSnapshot> adjusted_from_;

@@ -257,12 +257,17 @@ std::vector<cv::Point2d> footprint_outline(const inference::SceneModel& scene, c
 // ---------------------------------------------------------------- preview
 namespace {
 
+// The prop's base at the spot, at the prop's natural height (the preview and the render agree).
 render::PropPlacement placement_at(const Spot& spot, double height_m) {
   render::PropPlacement p;
   p.pixel_u = spot.pixel.x;
   p.pixel_v = spot.pixel.y;
   p.height_m = height_m;
   return p;
+}
+
+double height_of(const PropEntry& prop, const render::Mesh& mesh) {
+  return prop.natural_height_m > 0 ? prop.natural_height_m : natural_height(prop.source, mesh);
 }
 
 // The preview's shading: ambient plus a key from above and behind the camera.
@@ -275,7 +280,7 @@ PlacementPreview::PlacementPreview(std::shared_ptr<const Analysis> analysis, con
                                    const Spot& first_spot)
     : analysis_(std::move(analysis)), prop_source_(prop.source) {
   prop_ = load_prop(prop.source);
-  height_m_ = prop.natural_height_m > 0 ? prop.natural_height_m : natural_height(prop.source, prop_);
+  height_m_ = height_of(prop, prop_);
   world_ = build_composite_world(analysis_->scene, prop_, placement_at(first_spot, height_m_));
 }
 
@@ -383,11 +388,7 @@ CompositeRender::CompositeRender(std::shared_ptr<const Analysis> analysis, const
                                  TierSpec tier, int threads)
     : analysis_(std::move(analysis)), tier_(tier) {
   prop_ = load_prop(prop.source);
-  render::PropPlacement placement;
-  placement.pixel_u = spot.pixel.x;
-  placement.pixel_v = spot.pixel.y;
-  placement.height_m = prop.natural_height_m > 0 ? prop.natural_height_m : natural_height(prop.source, prop_);
-  world_ = build_composite_world(analysis_->scene, prop_, placement);
+  world_ = build_composite_world(analysis_->scene, prop_, placement_at(spot, height_of(prop, prop_)));
   render::RenderSettings base;
   base.max_bounces = kRenderBounces;
   base.seed = kRenderSeed;

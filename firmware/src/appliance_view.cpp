@@ -127,7 +127,7 @@ ui_fb::ScreenView Appliance::build_view() const {
             ui_fb::TierChoice c;
             c.name = to_string(t);
             c.samples_per_pixel = spec.max_samples_per_pixel;
-            // Differential rendering traces two paths where the prop matters.
+            // An upper bound: tiles stop early at the tier's target error.
             c.predicted_seconds = rate_pixel_samples > 0 ? pixels * spec.max_samples_per_pixel / rate_pixel_samples : -1;
             view.tiers.push_back(c);
             if (t == model.tier) view.selected_tier = static_cast<int>(view.tiers.size()) - 1;
