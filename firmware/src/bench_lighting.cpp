@@ -41,6 +41,8 @@ constexpr double kNoiseBlurSigmaPx = 1.5;
 constexpr double kPropYawDeg = 30.0;
 // Resolution of the baseline's environment (the photo wrapped onto a sphere).
 constexpr int kBaselineEnvironmentWidth = 128;
+// Area lights farther than this from the camera are distant (suns, sky patches).
+constexpr double kFarLightM = 100.0;
 
 double luminance(const Vector3f& c) { return 0.2126 * c.x() + 0.7152 * c.y() + 0.0722 * c.z(); }
 
@@ -118,6 +120,9 @@ struct Config {
 
 struct Errors {
   double direction_deg = 0, irradiance_rel = 0, rerender = 0, composite_rel = 0, seconds = 0, gamma = 0;
+  // Streets: the brightest far light against the true sun, in the camera's
+  // frame (the estimate's world may be turned against the truth's).
+  double sun_deg = std::nan(""), sun_elevation_deg = std::nan(""), true_sun_elevation_deg = std::nan("");
   int lights = 0;
 };
 
@@ -152,6 +157,26 @@ void score_scene(const Shot& s, const inference::SceneModel& est, const render::
   e.composite_rel = composite_error(s, composite_like_the_cli(s.shot.photo_linear, est, prop, s.placement, spp));
   e.gamma = est.gamma;
   e.lights = static_cast<int>(est.lights.size());
+  if (s.shot.room.lights.suns.empty()) return;
+  const Eigen::Matrix3d R_true = s.shot.room.camera.R_world_from_cam;
+  const Vector3d true_sun = s.shot.room.lights.suns.front().direction.cast<double>().normalized();
+  const Vector3d centre = est.camera().center_world;
+  double brightest = 0;
+  Vector3d sun = Vector3d::Zero();
+  for (const auto& l : est.lights) {
+    Vector3d d;
+    if (l.type == inference::LightSource::Type::Sun) d = l.direction;
+    else if (l.type == inference::LightSource::Type::Area && (l.position - centre).norm() > kFarLightM)
+      d = l.position - centre;
+    else continue;
+    const double power = luminance(l.intensity.cast<float>()) *
+                         (l.type == inference::LightSource::Type::Area ? l.edge_u.cross(l.edge_v).norm() / d.squaredNorm() : 1.0);
+    if (power > brightest) brightest = power, sun = d.normalized();
+  }
+  e.true_sun_elevation_deg = std::asin(std::clamp(true_sun.y(), -1.0, 1.0)) * kRadToDeg;
+  if (brightest <= 0) return;
+  e.sun_deg = angle_deg(est.R_world_from_cam.transpose() * sun, R_true.transpose() * true_sun);
+  e.sun_elevation_deg = std::asin(std::clamp(sun.y(), -1.0, 1.0)) * kRadToDeg;
 }
 
 Errors evaluate(const Shot& s, const inference::InferenceOptions& o, const render::Mesh& prop, int spp) {
@@ -249,9 +274,12 @@ std::vector<Config> configs(const std::vector<std::string>& sweeps) {
   if (wanted("sky"))
     out.push_back({"sky", "sky held at 1, albedo mean 0.5", 0,
                    [](inference::InferenceOptions& o) { o.lighting.albedo_scale_from_sky = false; }});
-  if (wanted("sun"))
-    out.push_back({"sun", "sun chosen by fit error", 0,
+  if (wanted("sun")) {
+    out.push_back({"sun", "sun searched from cast shadows", 2,
+                   [](inference::InferenceOptions& o) { o.lighting.sun_from_shadows = true; }});
+    out.push_back({"sun", "16 sun hypotheses, by fit error", 0,
                    [](inference::InferenceOptions& o) { o.lighting.sun_from_shading = false; }});
+  }
   if (wanted("albedo")) {
     out.push_back({"albedo", "Color Retinex", 0, [](inference::InferenceOptions& o) {
                      o.albedo.method = inference::AlbedoOptions::Method::Retinex;
@@ -320,6 +348,9 @@ json run_lighting_bench(const LightingBenchOptions& o) {
                         {"irradiance_rel", number_or_null(e.irradiance_rel)}, {"rerender_rel_rms", number_or_null(e.rerender)},
                         {"composite_rel_rmse", number_or_null(e.composite_rel)}, {"gamma", e.gamma},
                         {"lights", e.lights}, {"seconds", e.seconds}, {"region_pixels", cv::countNonZero(s.region)}});
+      if (std::isfinite(e.true_sun_elevation_deg))
+        scenes.back().update({{"sun_deg", number_or_null(e.sun_deg)}, {"sun_elevation_deg", number_or_null(e.sun_elevation_deg)},
+                              {"true_sun_elevation_deg", e.true_sun_elevation_deg}});
     }
     json row = {{"sweep", sweep}, {"label", label}, {"value", value}, {"all", summary(all)}, {"scenes", scenes}};
     if (!rooms.empty()) row["rooms"] = summary(rooms);

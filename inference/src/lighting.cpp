@@ -379,11 +379,22 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
     }
   }
   const size_t ranked_candidates = unseen.size();
-  if (options.keep_hypotheses || unseen.empty())
+  // A visible sky is a radiance measurement: the environment's weight is 1.
+  const bool sky_calibrated = sky && sky->fraction > 0 && sky->mean_colour.maxCoeff() > 0;
+  // Outdoors the sun is searched for after the sky's basis render; the
+  // ranked panoramas' distant lights lend it their directions.
+  const bool search_sun = !indoor && sky_calibrated && options.sun_from_shadows;
+  std::vector<Vector3d> ranked_sun_directions;
+  if (search_sun) {
+    for (const auto& l : unseen)
+      if ((l.position - camera.center_world).norm() > kSunDistanceM / 2) ranked_sun_directions.push_back((l.position - camera.center_world).normalized());
+    unseen.clear();
+  } else if (options.keep_hypotheses || unseen.empty()) {
     for (auto& candidate : out_of_view_candidates(camera, planes, indoor, options)) unseen.push_back(candidate);
+  }
   ranking.seconds = seconds_since(start);
   ranking.details["ranked_candidates"] = ranked_candidates;
-  ranking.details["hypotheses"] = unseen.size() - ranked_candidates;
+  ranking.details["hypotheses"] = search_sun ? 0 : unseen.size() - ranked_candidates;
   out.reports.push_back(ranking);
   for (auto& candidate : unseen) {
     out.lights.push_back(candidate);
@@ -394,8 +405,6 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   start = Clock::now();
   LightSource ibl;
   ibl.type = LightSource::Type::Ibl;
-  // A visible sky is a radiance measurement: the environment's weight is 1.
-  const bool sky_calibrated = sky && sky->fraction > 0 && sky->mean_colour.maxCoeff() > 0;
   ibl.environment = sky_calibrated ? environment_with_sky(photo_linear, camera, options.environment_width, *sky)
                                    : environment_from_photo(photo_linear, camera, options.environment_width);
   out.lights.push_back(ibl);
@@ -430,20 +439,52 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   settings.samples_per_pixel = options.fit_samples_per_pixel;
   settings.max_bounces = options.fit_bounces;
   settings.seed = options.seed;
-  const int k = rig.count();
+  int k = rig.count();
   // One set of paths for all lights (render_background_light_images): about
   // half the time of a render per light.
-  const std::vector<cv::Mat> basis = render::render_background_light_images(scene, fit_camera, rig, settings);
-  const double basis_seconds = seconds_since(start);
-  const auto fit_start = Clock::now();
+  std::vector<cv::Mat> basis = render::render_background_light_images(scene, fit_camera, rig, settings);
   // Pixels that inform the fit: not the sources themselves, not clipped.
   std::vector<cv::Point> used;
+  cv::Mat usable = cv::Mat::zeros(fit_h, fit_w, CV_8U);
   for (int y = 0; y < fit_h; ++y)
     for (int x = 0; x < fit_w; ++x) {
       const cv::Vec3f c = fit_photo.at<cv::Vec3f>(y, x);
-      if (fit_mask.at<uint8_t>(y, x) == 0 && fit_depth.at<float>(y, x) < render::kSkyDepthM && c[0] < kSaturatedLinear && c[1] < kSaturatedLinear && c[2] < kSaturatedLinear)
+      if (fit_mask.at<uint8_t>(y, x) == 0 && fit_depth.at<float>(y, x) < render::kSkyDepthM && c[0] < kSaturatedLinear && c[1] < kSaturatedLinear && c[2] < kSaturatedLinear) {
         used.push_back({x, y});
+        usable.at<uint8_t>(y, x) = 255;
+      }
     }
+  // The searched sun (LightingOptions::sun_from_shadows) goes just before the
+  // environment, with its own basis render; -1: none.
+  int searched_sun = -1;
+  double sun_per_sky = 0.0;
+  nlohmann::json sun_search_report;
+  if (search_sun) {
+    const auto search_start = Clock::now();
+    const SunFromShadows found =
+        sun_from_shadows(scene, fit_camera, fit_photo, fit_albedo, basis.back(), usable, options.sun_search, ranked_sun_directions);
+    sun_search_report = {{"found", found.found}, {"direction", {found.direction.x(), found.direction.y(), found.direction.z()}},
+                         {"irradiance_per_sky", found.irradiance_per_sky}, {"variance_no_sun", found.variance_no_sun},
+                         {"variance", found.variance}, {"pixels", found.pixels}, {"groups", found.groups},
+                         {"hypotheses", found.hypotheses}, {"ranked_directions", ranked_sun_directions.size()}};
+    if (found.found) {
+      LightSource sun;
+      sun.type = LightSource::Type::Sun;
+      sun.direction = found.direction;
+      const int at = k - 1;
+      out.lights.insert(out.lights.begin() + at, sun);
+      colours.insert(colours.begin() + at, Vector3d::Ones());
+      std::vector<cv::Mat> sun_basis =
+          render::render_background_light_images(scene, fit_camera, make_light_rig({sun}, true), settings);
+      basis.insert(basis.begin() + at, sun_basis.front());
+      searched_sun = at;
+      sun_per_sky = found.irradiance_per_sky;
+      ++k;
+    }
+    sun_search_report["seconds"] = seconds_since(search_start);
+  }
+  const double basis_seconds = seconds_since(start);
+  const auto fit_start = Clock::now();
   // Channel c in 0..2, or 3 for luminance.
   auto basis_value = [&](int i, const cv::Point& p, int c) -> double {
     const cv::Vec3f v = basis[i].at<cv::Vec3f>(p);
@@ -477,6 +518,13 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
     for (size_t n = 0; n < fit_pixels.size(); ++n) problem.basis[i][n] = static_cast<float>(basis_value(i, fit_pixels[n], 3));
     problem.noise.push_back(basis_noise(basis[i], {}));
   }
+  // The searched sun is weighed with the sky, at the ratio its shadows set:
+  // the sky's column becomes sky + ratio * sun, and the sun's own is off.
+  if (searched_sun >= 0) {
+    for (size_t n = 0; n < fit_pixels.size(); ++n)
+      problem.basis[k - 1][n] += static_cast<float>(sun_per_sky * problem.basis[searched_sun][n]);
+    problem.lower[searched_sun] = problem.upper[searched_sun] = upper[searched_sun] = 0.0;
+  }
   for (const auto& p : fit_pixels)
     problem.target.push_back(capture::linear_to_srgb(static_cast<float>(photo_value(p, 3))));
   // Outdoors there is one sun, and the ground alone cannot tell its
@@ -502,6 +550,7 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
     return fit_intensities(problem, o);
   };
   IntensityFitResult chosen = solve(upper, fit_options);
+  if (searched_sun >= 0) chosen.weights[searched_sun] = sun_per_sky * chosen.weights[k - 1];
   // Outdoors there is one sun: of the sun hypotheses the fit used, keep the
   // one that alone (with the other lights) explains the photo best.
   int suns_used = 0;
@@ -563,6 +612,12 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
     }
     gains[c] = oo > kMinBasisEnergy ? std::clamp(oy / oo, kMinChannelGain, kMaxChannelGain) : 1.0;
   }
+  // A searched sun's strength is the shadows' (weighed with the sky): the
+  // balance may tint it, not rescale it.
+  if (searched_sun >= 0) {
+    const double level = 0.2126 * gains[0] + 0.7152 * gains[1] + 0.0722 * gains[2];
+    if (level > 0) gains /= level;
+  }
   // The balance may tint the lights only so far: the estimated albedo already
   // carries the room's colour cast (interreflections), so a strong tint
   // double-counts it (a warm room fitted blue lights, and a grey prop came
@@ -621,7 +676,7 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
                  {"albedo_scale", out.albedo_scale},
                  {"fit_error_encoded", chosen.data_error},
                  {"basis_render_seconds", basis_seconds}, {"fit_seconds", seconds_since(fit_start)},
-                 {"sun_shading_agreement", sun_agreement},
+                 {"sun_shading_agreement", sun_agreement}, {"sun_from_shadows", sun_search_report},
                  {"visible_sources", visible_sources}, {"hypotheses", hypotheses}, {"kept", out.lights.size()}};
   out.reports.push_back(fit);
   out.gamma = response;

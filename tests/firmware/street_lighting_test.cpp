@@ -59,3 +59,44 @@ TEST(StreetLighting, TheSkyNotTheAssumedMeanSetsTheAlbedoScale) {
 
 }  // namespace
 }  // namespace propcam::firmware
+
+namespace propcam::firmware {
+namespace {
+
+// With the sun searched from cast shadows (off by default), a street's fit
+// keeps at most one sun, of the searched kind, weighed with the sky, and the
+// search says what it tried.
+TEST(StreetLighting, TheSunSearchedFromShadowsIsOneSunWeighedWithTheSky) {
+  render::SyntheticStreetSpec spec;
+  spec.width = 320;
+  spec.height = 240;
+  spec.seed = 5;
+  render::RenderSettings settings;
+  settings.samples_per_pixel = 16;
+  const SyntheticShot shot = shoot_synthetic_street(spec, settings);
+  const inference::GeometryEstimate g = inference::infer_geometry(shot.photo_linear, inference::InferenceOptions{});
+  ASSERT_FALSE(g.indoor);
+  inference::InferenceOptions o;
+  o.lighting.sun_from_shadows = true;
+  const inference::SceneModel est = inference::complete_scene(shot.photo_linear, g, o);
+  EXPECT_NO_THROW(est.validate());
+  nlohmann::json search;
+  for (const auto& r : est.reports)
+    if (r.stage == "light_intensities") search = r.details.at("sun_from_shadows");
+  ASSERT_TRUE(search.is_object());
+  EXPECT_GT(search.at("hypotheses").get<int>(), 100);
+  int suns = 0, far_quads = 0;
+  for (const auto& l : est.lights) {
+    if (l.type == inference::LightSource::Type::Sun) {
+      ++suns;
+      EXPECT_NEAR(l.direction.norm(), 1.0, 1e-9);
+      EXPECT_GT(l.intensity.minCoeff(), 0.0);
+    }
+    if (l.type == inference::LightSource::Type::Area && (l.position - est.camera().center_world).norm() > 100) ++far_quads;
+  }
+  EXPECT_EQ(suns, search.at("found").get<bool>() ? 1 : 0);
+  EXPECT_EQ(far_quads, 0);  // no hypotheses beside the searched sun
+}
+
+}  // namespace
+}  // namespace propcam::firmware

@@ -14,6 +14,7 @@
 #include "propcam/inference/light_classifier.h"
 #include "propcam/inference/scene_model.h"
 #include "propcam/inference/sky.h"
+#include "propcam/inference/sun_from_shadows.h"
 #include "propcam/render/camera.h"
 
 namespace propcam::inference {
@@ -69,6 +70,16 @@ struct LightingOptions {
   // Outdoors, weigh only the sun candidate whose shading agrees best with the
   // photo; off, the fit weighs them all and keeps the one that alone fits best.
   bool sun_from_shading = true;
+  // Outdoors under a seen sky, the sun is not a fixed set of hypotheses but
+  // searched for (sun_from_shadows.h): the direction whose cast shadows on
+  // the scene's geometry explain the photo, and its strength against the sky
+  // from the shadows' contrast. The ranked panoramas' suns join the search.
+  // The fit then weighs sky and sun together, at that ratio. Off: the
+  // hypotheses above, chosen by sun_from_shading. Off by default: the search
+  // needs an albedo that keeps the shadows out, and the estimated one does
+  // not (`propcam bench lighting --sweeps sun`; inference/README.md).
+  bool sun_from_shadows = false;
+  SunFromShadowsOptions sun_search;
   uint64_t seed = 11;
 };
 
