@@ -189,7 +189,7 @@ void add_render_cases(std::vector<HardCase>& cases) {
                      background.add_mesh(floor_quad(1e4f, 10, -1e4f), Layer::Background);
                      background.commit();
                      Eigen::Vector2d horizon;
-                     cam.project({0, 1.5, -1e9}, horizon);
+                     check(cam.project({0, 1.5, -1e9}, horizon), "the horizon is in view");
                      place_prop(make_prop("cube"), cam, background, {horizon.x(), horizon.y() - 0.5, 0.5, 0});
                    }});
   cases.push_back({"CorruptObj", m, "an OBJ file whose face names vertex 9 of 2", "error naming the file",
