@@ -21,6 +21,7 @@ Stdlib only.
 import argparse
 import os
 import re
+import signal
 import socket
 import subprocess
 import sys
@@ -77,6 +78,7 @@ def main():
     ap.add_argument("--mem", type=int, default=1536)
     ap.add_argument("--append", default="", help="more kernel command line")
     ap.add_argument("--quiet", action="store_true", help="do not copy the console to stderr")
+    ap.add_argument("--watch", type=float, default=0, help="also screendump OUT/watch.png every WATCH seconds")
     args = ap.parse_args()
 
     out = os.path.abspath(args.out)
@@ -111,6 +113,14 @@ def main():
     started = time.time()
     deadline = started + args.timeout
     qemu = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+
+    def stop(signum, _frame):
+        # timeout(1) runs in its own process group: pass the signal on, QEMU ends with it.
+        qemu.terminate()
+        sys.exit(128 + signum)
+
+    signal.signal(signal.SIGTERM, stop)
+    signal.signal(signal.SIGINT, stop)
     exit_rc = [None]
     log = open(os.path.join(out, "console.log"), "w", buffering=1)
 
@@ -186,6 +196,17 @@ def main():
             return
 
     threading.Thread(target=control, daemon=True).start()
+
+    def watch():
+        while qemu.poll() is None:
+            time.sleep(args.watch)
+            try:
+                monitor.command(f"screendump {os.path.join(out, 'watch.png')} -f png")
+            except (OSError, EOFError):
+                return
+
+    if args.watch > 0:
+        threading.Thread(target=watch, daemon=True).start()
     rc = qemu.wait()
     reader.join(timeout=5)
     elapsed = time.time() - started

@@ -83,20 +83,23 @@ stick_watch() {
   done
 }
 
-# await_state LABEL SECONDS: waits for the appliance's next snapshot named
-# NNN-LABEL.png in $SNAPSHOTS after the last one awaited.
+# await_state LABEL SECONDS: waits (SECONDS of guest uptime) for the
+# appliance's next snapshot named NNN-LABEL.png in $SNAPSHOTS after the last
+# one awaited.
 SNAPSHOTS=/tmp/snapshots
 last_snapshot=0
 await_state() {
-  t=0
-  limit=$(($2 * 10))
-  while [ "$t" -lt "$limit" ]; do
+  read -r now _ < /proc/uptime
+  deadline=$((${now%.*} + $2))
+  while :; do
     for f in "$SNAPSHOTS"/*-"$1".png; do
       [ -e "$f" ] || continue
-      n=${f##*/}; n=${n%%-*}; n=$(expr "$n" + 0)
+      n=${f##*/}; n=${n%%-*}; n=${n#0}; n=${n#0}
       if [ "$n" -gt "$last_snapshot" ]; then last_snapshot=$n; return 0; fi
     done
-    sleep 0.1; t=$((t + 1))
+    read -r now _ < /proc/uptime
+    [ "${now%.*}" -lt "$deadline" ] || break
+    sleep 0.1
   done
   log "timed out after $2 s waiting for state $1 (have: $(ls "$SNAPSHOTS" 2>/dev/null | tr '\n' ' '))"
   return 1
