@@ -88,7 +88,7 @@ def main():
         if os.path.exists(p):
             os.unlink(p)
     stick = os.path.abspath(args.stick) if args.stick else None
-    cmd = ["timeout", "-k", "5", str(int(args.timeout)), "qemu-system-x86_64",
+    cmd = ["timeout", "--foreground", "-k", "5", str(int(args.timeout)), "qemu-system-x86_64",
            "-accel", "tcg", "-cpu", os.environ.get("PROPCAM_VM_CPU", "max"), "-m", str(args.mem), "-smp", str(args.smp),
            "-display", "none", "-vga", "std", "-no-reboot", "-net", "none",
            "-serial", "stdio", "-serial", f"unix:{ctl_path},server=on,wait=off",
@@ -112,11 +112,18 @@ def main():
                 "-device", "usb-storage,bus=xhci.0,drive=stick0,id=stick,removable=on"]
     started = time.time()
     deadline = started + args.timeout
-    qemu = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    # QEMU and its timeout(1) in a process group of their own: stop() ends both.
+    qemu = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                            start_new_session=True)
 
     def stop(signum, _frame):
-        # timeout(1) runs in its own process group: pass the signal on, QEMU ends with it.
-        qemu.terminate()
+        try:
+            os.killpg(qemu.pid, signal.SIGTERM)
+            qemu.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            os.killpg(qemu.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
         sys.exit(128 + signum)
 
     signal.signal(signal.SIGTERM, stop)

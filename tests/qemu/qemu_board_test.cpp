@@ -114,13 +114,13 @@ Boot boot_once() {
     b.vm_log = "mkfs.vfat failed (apt-get install dosfstools)";
     return b;
   }
-  // The stick's writes are throttled (100 kB/s) so the export is still writing when it is pulled.
+  // The stick's writes are throttled (20 kB/s) so the export is still writing when it is pulled.
   const char* timeout = std::getenv("PROPCAM_QEMU_TIMEOUT");
   const auto vm = propcam::test::run_shell(
       "python3 " + shell_quote((kQemuBoard / "vm.py").string()) + " --kernel-dir " + shell_quote(kernel_dir) +
       " --initrd " + shell_quote(initrd) + " --out " + b.out.string() + " --run " +
       shell_quote((kQemuBoard / "guest/system_test.sh").string()) + " --stick " + image.string() +
-      " --stick-write-bps 100000 --quiet --timeout " + (timeout ? timeout : "1200") + " 2>&1");
+      " --stick-write-bps 20000 --quiet --timeout " + (timeout ? timeout : "1500") + " 2>&1");
   b.vm_exit = vm.exit_code;
   b.vm_log = vm.out;
   b.stick = work / "stick";

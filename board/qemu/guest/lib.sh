@@ -1,5 +1,5 @@
 # Sourced by the qemu board's guest scripts (run by guest/init in the chroot
-# of the host's root, under /bin/sh). Sets up the board's devices and gives
+# of the host's root, under bash). Sets up the board's devices and gives
 # the scripts: vm REQUEST (ask the host, vm.py), press/hold BUTTON (gpio-sim),
 # await_state LABEL SECONDS (the appliance's snapshots), the stick's mounts.
 OUT=/run/vm
@@ -47,12 +47,19 @@ button_line() {
   log "no button $1"; return 1
 }
 
+# pause SECONDS without starting a process: a sleep(1) can take most of a
+# second to start in the emulated guest, which would turn a press into a long
+# press. (bash's read -t on a FIFO nobody writes.)
+mkfifo /tmp/.pause.fifo
+exec 7<> /tmp/.pause.fifo
+pause() { read -r -t "$1" <&7 || true; }
+
 # press BUTTON / hold BUTTON SECONDS: the line pulled down (pressed), then up.
 press() { hold "$1" 0.15; }
 hold() {
   f=$(button_line "$1") || return 1
-  echo pull-down > "$f"; sleep "$2"; echo pull-up > "$f"
-  sleep 0.3
+  echo pull-down > "$f"; pause "$2"; echo pull-up > "$f"
+  pause 0.3
 }
 
 # The framebuffer console must not draw over the appliance.

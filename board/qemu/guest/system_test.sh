@@ -1,4 +1,4 @@
-# The qemu board's system test session, one boot (vm.py --run): what
+# The qemu board's system test session (bash), one boot (vm.py --run): what
 # tests/board/qemu_system_test.cpp checks is left in /run/vm.
 #   1. propcamd on vivid (the V4L2 backend), a still through it: shot.png
 #   2.-4. the appliance (propcam run --daemon, board/qemu/board.json): buttons
@@ -71,9 +71,9 @@ session() {
   # Export (long OK); pull the stick while the export's files are being written.
   hold ok 1.2
   t=0
-  until ls "$STICK_MOUNT"/PropCam/.propcam-* > /dev/null 2>&1; do
-    sleep 0.05; t=$((t + 1))
-    [ "$t" -lt 1200 ] || { log "no export started on the stick"; return 1; }
+  until compgen -G "$STICK_MOUNT/PropCam/.propcam-*" > /dev/null; do
+    pause 0.05; t=$((t + 1))
+    [ "$t" -lt 2400 ] || { log "no export started on the stick"; return 1; }
   done
   ls -la "$STICK_MOUNT"/PropCam > "$OUT/stick_at_unplug.txt" 2>&1
   vm unplug || return 1
@@ -85,10 +85,9 @@ session() {
   step plugged back
   # The appliance flushes the spool onto the stick by itself.
   t=0
-  until [ -n "$(ls "$STICK_MOUNT"/PropCam/*.png 2>/dev/null)" ] &&
-        [ -z "$(ls -A /run/propcam/spool 2>/dev/null | grep -v '^\.')" ]; do
-    sleep 0.2; t=$((t + 1))
-    [ "$t" -lt 600 ] || { log "the spool was not flushed to the stick"; return 1; }
+  until compgen -G "$STICK_MOUNT/PropCam/*.png" > /dev/null && ! compgen -G "/run/propcam/spool/*" > /dev/null; do
+    pause 0.2; t=$((t + 1))
+    [ "$t" -lt 3000 ] || { log "the spool was not flushed to the stick"; return 1; }
   done
   step flushed
   vm shot flushed || return 1
