@@ -275,6 +275,8 @@ TEST_F(QemuBoard, PullingTheStickMidExportLosesNothing) {
   for (const auto& e : fs::directory_iterator(boot().stick)) {
     const std::string name = e.path().filename().string();
     EXPECT_NE(name.rfind(".propcam-", 0), 0u) << "a temporary left on the stick: " << name;
+    // (vfat writes a renamed file's size with its inode: publish_file fsyncs it after the rename.)
+    EXPECT_GT(fs::file_size(e.path()), 0u) << "an empty file under a final name: " << name;
     ++by_ext[e.path().extension().string()];
     if (e.path().extension() == ".png") pngs.push_back(e.path());
   }

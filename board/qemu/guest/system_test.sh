@@ -34,6 +34,12 @@ daemon=$!
 # the camera list runs beside the rest.)
 "$propcam" cameras --json > "$OUT/cameras.json" 2> "$OUT/cameras.log" &
 cameras=$!
+t=0
+until [ -S /run/propcam/capture.sock ]; do
+  pause 0.2; t=$((t + 1))
+  [ "$t" -lt 3000 ] || { log "propcamd never served its socket"; break; }
+done
+step propcamd serving
 "$propcam" shoot --daemon /run/propcam/capture.sock --still-size 320x180 --settle-frames 4 -o "$OUT/shot.png" --json \
   > "$OUT/shoot.json" 2> "$OUT/shoot.log"
 echo $? > "$OUT/shoot.rc"
