@@ -245,6 +245,8 @@ TEST_F(QemuBoard, TheScreenShowsTheViewfinderTheCarouselAndTheComposite) {
   const json base = meta.contains("metadata") ? meta["metadata"]["base_pixel"] : meta["base_pixel"];
   ASSERT_TRUE(base.is_array()) << meta.dump(2);
   const double u = base[0].get<double>(), v = base[1].get<double>();
+  const json& fields = meta.contains("metadata") ? meta["metadata"] : meta;
+  EXPECT_EQ(fields.value("converged_fraction", 0.0), 1.0) << "the render had converged: " << meta.dump(2);
   const cv::Rect carea = picture(composite_screen, propcam::ui_fb::ScreenKind::Adjusting, shot);
   ASSERT_GT(carea.area(), 0);
   cv::Mat photo_on_screen;
