@@ -68,7 +68,7 @@ unbind_fbcon() {
   true
 }
 
-# A stick appears as /dev/sdX: mount it (vfat) at $STICK_MOUNT; a stick that
+# A stick appears as /dev/sdX: check it (fsck.vfat -a) and mount it (vfat) at $STICK_MOUNT; a stick that
 # went away is unmounted (lazily: its files may still be open). Runs in the
 # background, like udisks on a desktop.
 stick_watch() {
@@ -83,6 +83,10 @@ stick_watch() {
       for d in /sys/block/sd*; do
         [ -e "$d" ] || continue
         n=${d##*/}
+        # A stick pulled mid-write can come back with a FAT the kernel then
+        # turns read-only ("deleting FAT entry beyond EOF"): repair it first,
+        # as a desktop's fsck would.
+        fsck.vfat -a "/dev/$n" > /dev/null 2>&1
         if mount -t vfat -o flush "/dev/$n" "$STICK_MOUNT" 2>/dev/null; then mounted=$n; log "stick $n mounted"; break; fi
       done
     fi

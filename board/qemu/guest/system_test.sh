@@ -93,7 +93,7 @@ session() {
   t=0
   until compgen -G "$STICK_MOUNT/PropCam/*.png" > /dev/null && ! compgen -G "/run/propcam/spool/*" > /dev/null; do
     pause 0.2; t=$((t + 1))
-    [ "$t" -lt 3000 ] || { log "the spool was not flushed to the stick"; return 1; }
+    [ "$t" -lt 600 ] || { log "the spool was not flushed to the stick"; return 1; }
   done
   step flushed
   vm shot flushed || return 1
