@@ -25,6 +25,11 @@ packages=(
   # real photographs for tests: OpenCV's sample images, and CC0 HDR panoramas
   # (blender-data's studio lights) that real views and, later, the IBL library are cut from
   opencv-doc blender-data
+  # the qemu board (board/qemu/): QEMU, the initramfs (static busybox, cpio, kmod's
+  # modprobe/depmod, xz for the vmlinux), the stick's FAT image (dosfstools, mtools),
+  # the guest's tools (gpiod, v4l-utils), the VM driver (python3); the kernel and
+  # its sources are fetched by board/qemu/fetch.sh (apt-get download)
+  qemu-system-x86 busybox-static cpio kmod xz-utils dosfstools mtools gpiod v4l-utils python3
 )
 
 missing=()

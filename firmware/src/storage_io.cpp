@@ -91,7 +91,12 @@ void check_io(int error, const std::string& step, const fs::path& path) {
   if (error != 0) throw StorageFailure(error, step, path);
 }
 
-void write_new_file(StorageIo& io, const fs::path& path, std::span<const std::uint8_t> bytes) {
+namespace {
+
+// Creates `path`, writes `bytes` and fsyncs them; returns the open descriptor.
+// On failure the descriptor is closed, the file removed (best effort) and
+// StorageFailure thrown.
+int write_synced(StorageIo& io, const fs::path& path, std::span<const std::uint8_t> bytes) {
   int fd = -1;
   check_io(io.create_file(path, fd), "create", path);
   int error = 0;
@@ -108,23 +113,40 @@ void write_new_file(StorageIo& io, const fs::path& path, std::span<const std::ui
     error = io.sync_file(fd);
     step = "fsync";
   }
-  const int close_error = io.close_file(fd);
-  if (error == 0 && close_error != 0) {
-    error = close_error;
-    step = "close";
-  }
   if (error != 0) {
+    io.close_file(fd);
     io.remove(path);  // best effort: the stick may be gone
     throw StorageFailure(error, step, path);
+  }
+  return fd;
+}
+
+}  // namespace
+
+void write_new_file(StorageIo& io, const fs::path& path, std::span<const std::uint8_t> bytes) {
+  const int fd = write_synced(io, path, bytes);
+  if (const int error = io.close_file(fd); error != 0) {
+    io.remove(path);
+    throw StorageFailure(error, "close", path);
   }
 }
 
 void publish_file(StorageIo& io, const fs::path& temp, const fs::path& final_path, std::span<const std::uint8_t> bytes) {
-  write_new_file(io, temp, bytes);
+  const int fd = write_synced(io, temp, bytes);
   if (const int error = io.rename_new(temp, final_path); error != 0) {
+    io.close_file(fd);
     io.remove(temp);
     throw StorageFailure(error, "rename", final_path);
   }
+  // The file is fsynced again after the rename, before its folder: vfat
+  // writes a renamed file's directory entry (its size and first cluster) only
+  // when the inode is written back, which fsyncing the folder does not do. A
+  // stick pulled in between held an empty file under the final name
+  // (usb-storage in QEMU, tests/qemu).
+  int error = io.sync_file(fd);
+  const int close_error = io.close_file(fd);
+  if (error == 0) error = close_error;
+  check_io(error, "fsync", final_path);
   check_io(io.sync_dir(final_path.parent_path()), "fsync folder", final_path.parent_path());
 }
 

@@ -58,6 +58,7 @@ void write_new_file(StorageIo& io, const std::filesystem::path& path, std::span<
 
 // The durable publish of one file: `bytes` to `temp` (same folder as
 // `final_path`), fsync, rename to `final_path` (never replacing), fsync the
+// file again (vfat writes the renamed entry's size only then), fsync the
 // folder. No torn file is ever visible under `final_path`.
 void publish_file(StorageIo& io, const std::filesystem::path& temp, const std::filesystem::path& final_path,
                   std::span<const std::uint8_t> bytes);

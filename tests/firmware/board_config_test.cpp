@@ -17,7 +17,7 @@ using nlohmann::json;
 const fs::path kBoardRoot = fs::path(PROPCAM_SOURCE_DIR) / "board";
 
 TEST(BoardConfig, ListsTheCommittedBoards) {
-  EXPECT_EQ(list_boards(kBoardRoot), (std::vector<std::string>{"rpi", "usb-webcam", "virtual"}));
+  EXPECT_EQ(list_boards(kBoardRoot), (std::vector<std::string>{"qemu", "rpi", "usb-webcam", "virtual"}));
   EXPECT_TRUE(list_boards("/nonexistent/propcam/boards").empty());
 }
 
@@ -38,6 +38,20 @@ TEST(BoardConfig, RaspberryPiBoard) {
   EXPECT_DOUBLE_EQ(b.camera_mount_height_m, 1.4);
   EXPECT_EQ(b.storage.usb.kind, StorageLocation::Kind::Auto);
   EXPECT_EQ(b.storage.spool_dir.path, "/var/spool/propcam");
+}
+
+TEST(BoardConfig, QemuBoard) {
+  const BoardConfig b = load_board(kBoardRoot, "qemu");
+  EXPECT_EQ(b.buttons.backend, ButtonBackend::Gpiod);
+  EXPECT_EQ(b.buttons.gpio_chip, "propcam-buttons");  // gpio-sim's bank label (board/qemu/guest/lib.sh)
+  EXPECT_EQ(b.buttons.gpio_lines.at(Button::Shoot), "propcam-shoot");
+  EXPECT_EQ(b.buttons.gpio_lines.at(Button::Back), "propcam-back");
+  EXPECT_EQ(b.buttons.gpio_lines.size(), 5u);
+  EXPECT_EQ(b.display.backend, DisplayBackend::Fbdev);
+  EXPECT_EQ(b.display.device, "/dev/fb0");
+  EXPECT_EQ(b.camera.backend, CameraBackend::V4l2);
+  EXPECT_EQ(b.camera.id, "v4l2:/dev/video0");
+  EXPECT_EQ(b.storage.usb.kind, StorageLocation::Kind::Auto);
 }
 
 TEST(BoardConfig, UsbWebcamBoard) {
@@ -75,7 +89,7 @@ TEST(BoardConfig, UnknownOrUnsafeBoardNames) {
     load_board(kBoardRoot, "beaglebone");
     FAIL();
   } catch (const BoardConfigError& e) {
-    EXPECT_NE(std::string(e.what()).find("no board \"beaglebone\" (boards: rpi, usb-webcam, virtual)"),
+    EXPECT_NE(std::string(e.what()).find("no board \"beaglebone\" (boards: qemu, rpi, usb-webcam, virtual)"),
               std::string::npos) << e.what();
   }
   for (const char* bad : {"", "../board", "rpi/..", "/etc", "RPI", "-x"})
