@@ -15,6 +15,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -74,10 +75,20 @@ RunAs unprivileged_user() {
   const passwd* user = getpwnam("nobody");
   const group* grp = getgrnam("nogroup");
   if (!user || !grp) return r;
+  const std::string prefix = "setpriv --reuid=nobody --regid=nogroup --clear-groups --";
+  // A checkout under a private folder (/root/...) is out of nobody's reach:
+  // then the programs run as this user, still traced.
+  const std::string reach = prefix + " test -x " + quote(PROPCAM_CLI) + " -a -x " + quote(PROPCAMD) + " -a -r " +
+                            quote((kSource / "board/virtual/board.json").string()) + " -a -x " +
+                            quote(PROPCAM_BINARY_DIR) + " >/dev/null 2>&1";
+  if (propcam::test::run_shell(reach).exit_code != 0) {
+    std::fprintf(stderr, "security test: nobody cannot reach the build; running as uid %d\n", static_cast<int>(getuid()));
+    return r;
+  }
   r.drop = true;
   r.uid = user->pw_uid;
   r.gid = grp->gr_gid;
-  r.prefix = "setpriv --reuid=nobody --regid=nogroup --clear-groups --";
+  r.prefix = prefix;
   return r;
 }
 
