@@ -22,6 +22,8 @@ packages=(
   libcli11-dev nlohmann-json3-dev libspdlog-dev libtinyobjloader-dev libfreetype-dev fonts-dejavu-core
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev gnuplot-nox
+  # the security tests trace the appliance's sockets and file writes
+  strace
   # real photographs for tests: OpenCV's sample images, and CC0 HDR panoramas
   # (blender-data's studio lights) that real views and, later, the IBL library are cut from
   opencv-doc blender-data
