@@ -28,6 +28,9 @@ import sys
 import threading
 import time
 
+# The checkout (board/qemu/vm.py's grandparent): the guest keeps it visible.
+REPO_ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
 
 class Monitor:
     """QEMU's human monitor over a UNIX socket."""
@@ -98,7 +101,7 @@ def main():
            "-device", "qemu-xhci,id=xhci",
            "-kernel", os.path.join(args.kernel_dir, "vmlinux"), "-initrd", args.initrd,
            "-append", "console=ttyS0 panic=-1 quiet loglevel=4 vt.global_cursor_default=0 "
-                      f"propcam.run={args.run} {args.append}".strip()]
+                      f"propcam.run={args.run} propcam.keep={REPO_ROOT} {args.append}".strip()]
     plugs = [0]
 
     def stick_drive(n, bps):
