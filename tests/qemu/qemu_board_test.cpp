@@ -120,7 +120,7 @@ Boot boot_once() {
       "python3 " + shell_quote((kQemuBoard / "vm.py").string()) + " --kernel-dir " + shell_quote(kernel_dir) +
       " --initrd " + shell_quote(initrd) + " --out " + b.out.string() + " --run " +
       shell_quote((kQemuBoard / "guest/system_test.sh").string()) + " --stick " + image.string() +
-      " --stick-write-bps 20000 --quiet --timeout " + (timeout ? timeout : "1500") + " 2>&1");
+      " --stick-write-bps 8000 --quiet --timeout " + (timeout ? timeout : "1500") + " 2>&1");
   b.vm_exit = vm.exit_code;
   b.vm_log = vm.out;
   b.stick = work / "stick";
@@ -265,8 +265,15 @@ TEST_F(QemuBoard, TheScreenShowsTheViewfinderTheCarouselAndTheComposite) {
 // (4) the stick was pulled while the export was writing to it; the export was
 // kept in the spool and, once the stick was back, flushed onto it whole.
 TEST_F(QemuBoard, PullingTheStickMidExportLosesNothing) {
+  // When the stick went, the export was under way: a temporary was being
+  // written, or not all of the composite's three files had arrived yet. (The
+  // guest lists the folder a moment after it saw the temporary; under load a
+  // small file can be renamed in between, so either is "mid-export".)
   const std::string at_unplug = slurp(boot().out / "stick_at_unplug.txt");
-  EXPECT_NE(at_unplug.find(".propcam-"), std::string::npos) << "an export file was being written: " << at_unplug;
+  const bool writing = at_unplug.find(".propcam-") != std::string::npos;
+  const bool incomplete = at_unplug.find(".png") == std::string::npos || at_unplug.find(".jpg") == std::string::npos ||
+                          at_unplug.find(".json") == std::string::npos;
+  EXPECT_TRUE(writing || incomplete) << "the stick was pulled mid-export: " << at_unplug;
   // Meanwhile the composite waited in the spool (ls -R of it).
   const std::string spooled = slurp(boot().out / "spool_unplugged.txt");
   EXPECT_NE(spooled.find("composite.png"), std::string::npos) << spooled;
