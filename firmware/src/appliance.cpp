@@ -56,12 +56,14 @@ fs::path resolve_location(const StorageLocation& location, const fs::path& runti
 
 // ------------------------------------------------------------------ devices
 
-std::unique_ptr<ui_fb::Display> open_display(const DisplayConfig& config, const fs::path& snapshot_dir) {
+std::unique_ptr<ui_fb::Display> open_display(const DisplayConfig& config, const fs::path& snapshot_dir,
+                                             const fs::path& data_dir) {
   switch (config.backend) {
     case DisplayBackend::File: {
       ui_fb::FileDisplayOptions o;
       o.size = {config.width, config.height};
-      o.snapshot_path = (snapshot_dir.empty() ? config.device : snapshot_dir) / "screen.png";
+      const fs::path folder = !snapshot_dir.empty() ? snapshot_dir : !config.device.empty() ? config.device : data_dir;
+      o.snapshot_path = folder / "screen.png";
       return std::make_unique<ui_fb::FileDisplay>(o);
     }
     case DisplayBackend::Fbdev:
@@ -117,7 +119,7 @@ Appliance::Appliance(ApplianceOptions options)
                                               "spool folder");
   fs::create_directories(data_dir);
   if (!options_.snapshots_dir.empty()) fs::create_directories(options_.snapshots_dir);
-  display_ = open_display(board.display, options_.snapshots_dir);
+  display_ = open_display(board.display, options_.snapshots_dir, data_dir);
   canvas_ = std::make_unique<ui_fb::Canvas>(display_->size());
   std::optional<fs::path> usb_runtime;
   if (!options_.usb_dir.empty()) usb_runtime = options_.usb_dir;

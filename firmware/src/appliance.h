@@ -135,8 +135,9 @@ class Appliance {
 };
 
 // The board's display as configured (file displays write into `snapshot_dir`
-// when given, else the board's folder).
-std::unique_ptr<ui_fb::Display> open_display(const DisplayConfig& config, const std::filesystem::path& snapshot_dir);
+// when given, else the board's path, else, for "runtime", `data_dir`).
+std::unique_ptr<ui_fb::Display> open_display(const DisplayConfig& config, const std::filesystem::path& snapshot_dir,
+                                             const std::filesystem::path& data_dir);
 // The board's buttons; `script` replaces a script board's file.
 std::unique_ptr<ui_fb::ButtonInput> open_buttons(const ButtonsConfig& config, const std::filesystem::path& script);
 

@@ -325,7 +325,10 @@ DisplayConfig read_display(const Checker& c, const json& root) {
   } else {
     c.only_fields(j, ptr, {"backend", "path", "size"});
     d.backend = DisplayBackend::File;
-    d.device = c.any_path(c.string(j, ptr, "path"), ptr + "/path");
+    // "runtime": the screen file lives in the appliance's data folder, not
+    // beside the board file (which may be a read-only or source tree).
+    const std::string path = c.string(j, ptr, "path");
+    if (path != "runtime") d.device = c.any_path(path, ptr + "/path");
     const Size s = c.size(j, ptr, "size", 32, 8192);
     d.width = s.width;
     d.height = s.height;

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <array>
 #include <cstdio>
 #include <filesystem>
@@ -233,6 +234,33 @@ await viewfinder 10s
   ASSERT_EQ(r.exit_code, 0) << r.log;
   EXPECT_EQ(r.summary["final_state"], "viewfinder");
   EXPECT_FALSE(snapshot(r.summary, "fault").empty());
+}
+
+// Without --snapshots, a file display whose path is "runtime" (the virtual
+// board's) writes its screen into the data folder, never beside the board.
+TEST(ApplianceRun, WithoutSnapshotsTheScreenFileIsInTheDataFolder) {
+  const fs::path work = temp_dir("screen_in_data");
+  const fs::path board_dir = work / "virtual";  // a board is named after its folder
+  fs::create_directories(board_dir);
+  std::ifstream in(fs::path(PROPCAM_SOURCE_DIR) / "board/virtual/board.json");
+  json board = json::parse(in);
+  ASSERT_EQ(board["display"]["path"], "runtime");
+  fs::create_directory_symlink(fs::path(PROPCAM_SOURCE_DIR) / "board/virtual/recordings", board_dir / "recordings");
+  std::ofstream(board_dir / "board.json") << board.dump(2);
+  const fs::path script = write_script(work, "at 500ms wait 0s\n");
+  fs::create_directories(work / "usb");
+  // (run_appliance names the suite's shared data folder: the screen goes there.)
+  const fs::path screen = shared_data_dir() / "screen.png";
+  fs::remove(screen);
+  const SessionRun r = run_appliance("--board " + (board_dir / "board.json").string() + " --script " + script.string() +
+                                         " --usb " + (work / "usb").string(),
+                                     work);
+  ASSERT_EQ(r.exit_code, 0) << r.log;
+  EXPECT_TRUE(fs::is_regular_file(screen)) << r.log;
+  std::vector<std::string> beside_the_board;
+  for (const auto& e : fs::directory_iterator(board_dir)) beside_the_board.push_back(e.path().filename().string());
+  std::sort(beside_the_board.begin(), beside_the_board.end());
+  EXPECT_EQ(beside_the_board, (std::vector<std::string>{"board.json", "recordings"}));
 }
 
 TEST(ApplianceRun, PropsOnTheStickJoinTheCarousel) {
