@@ -512,7 +512,7 @@ void Appliance::start_export(JobId job) {
       item.composite_srgb8 = capture::linear_to_srgb8(adjusted_composite(*analysis, *render, adjustment));
       item.prop_name = prop_name;
       item.metadata = {{"prop", prop_name},
-                       {"base_pixel", {spot.pixel.x, spot.pixel.y}},
+                       {"base_pixel", {render->base_pixel.x, render->base_pixel.y}},
                        {"surface", spot.surface},
                        {"tier", to_string(model.tier)},
                        {"samples_per_pixel", render->samples_per_pixel},

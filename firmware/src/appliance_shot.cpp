@@ -287,7 +287,7 @@ PlacementPreview::PlacementPreview(std::shared_ptr<const Analysis> analysis, con
 cv::Mat PlacementPreview::render(const Spot& spot) {
   cv::Mat out = analysis_->photo_rgb8.clone();
   try {
-    const render::PlacedProp placed = render::place_prop(prop_, world_.camera, *world_.scene, placement_at(spot, height_m_));
+    const render::PlacedProp placed = place_near_level_support(prop_, world_.camera, *world_.scene, placement_at(spot, height_m_));
     world_.scene->set_prop_transform(world_.prop_index, placed.world_from_prop);
   } catch (const std::invalid_argument&) {
     return out;  // no support there: the photo alone
@@ -460,6 +460,7 @@ std::shared_ptr<const RenderSnapshot> CompositeRender::snapshot(bool final_layer
     if (!d.simulated) s->skipped_effects.push_back("no " + d.effect);
   s->finished = session_->finished();
   s->prop_distance_m = world_.camera.world_to_camera(world_.placed.base_world.cast<double>()).z();
+  s->base_pixel = {world_.placement.pixel_u, world_.placement.pixel_v};
   if (final_layers) {
     s->layers = render::layers_in_original_order(plan_, session_->light_layers());
     s->depth = world_.depth.clone();

@@ -150,6 +150,7 @@ struct RenderSnapshot {
   render::LightLayers layers;
   cv::Mat depth;
   double prop_distance_m = 2.0;
+  cv::Point2d base_pixel;  // where the prop stands (the spot, or a level pixel beside it)
 };
 
 // One progressive render of a placed prop.

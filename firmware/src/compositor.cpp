@@ -1,6 +1,8 @@
 #include "compositor.h"
 
+#include <algorithm>
 #include <chrono>
+#include <cstdlib>
 #include <filesystem>
 #include <stdexcept>
 
@@ -39,6 +41,31 @@ double natural_height(const std::string& name_or_file, const render::Mesh& mesh)
   return mesh.bounds().sizes().y();
 }
 
+render::PlacedProp place_near_level_support(const render::Mesh& prop, const render::PinholeCamera& camera,
+                                            const render::Scene& world, const render::PropPlacement& placement,
+                                            render::PropPlacement* used) {
+  if (used) *used = placement;
+  try {
+    return render::place_prop(prop, camera, world, placement);
+  } catch (const render::TiltedSupportError&) {
+    // Rings of growing radius, so the nearest level pixel wins.
+    for (int r = 1; r <= kMaxSupportNudgePx; ++r)
+      for (int dy = -r; dy <= r; ++dy)
+        for (int dx = -r; dx <= r; ++dx) {
+          if (std::max(std::abs(dx), std::abs(dy)) != r) continue;
+          render::PropPlacement nudged = placement;
+          nudged.pixel_u += dx, nudged.pixel_v += dy;
+          try {
+            const render::PlacedProp placed = render::place_prop(prop, camera, world, nudged);
+            if (used) *used = nudged;
+            return placed;
+          } catch (const std::invalid_argument&) {
+          }
+        }
+    throw;
+  }
+}
+
 CompositeWorld build_composite_world(const inference::SceneModel& scene, const render::Mesh& prop,
                                      const render::PropPlacement& placement) {
   const auto start = std::chrono::steady_clock::now();
@@ -62,7 +89,7 @@ CompositeWorld build_composite_world(const inference::SceneModel& scene, const r
   // looks at the background alone, and then the prop is moved into place.
   w.prop_index = world.add_prop(prop, Eigen::Affine3f::Identity());
   world.commit();
-  w.placed = render::place_prop(prop, w.camera, world, placement);
+  w.placed = place_near_level_support(prop, w.camera, world, placement, &w.placement);
   world.set_prop_transform(w.prop_index, w.placed.world_from_prop);
   w.prop_bounds = world.world_bounds(w.prop_index);
   w.build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -40,9 +40,25 @@ struct CompositeWorld {
   double build_seconds = 0.0;  // depth mesh, placement and acceleration structures
   cv::Mat depth;               // the scene's depth with the insertion constraint applied
   inference::InsertionFlattening flattening;
+  // Where the prop stands: the asked pixel, or the nearest one within
+  // kMaxSupportNudgePx when the asked one fell on a steep triangle.
+  render::PropPlacement placement;
 };
 
-// Throws std::invalid_argument as place_prop does (pixel outside, no support).
+// A spot offered from the smoothed normals can fall on one steep triangle of
+// the depth mesh (depth noise, a kerb's edge) amid level ground: the prop then
+// stands on the nearest level pixel this close. A wall stays refused.
+constexpr int kMaxSupportNudgePx = 3;
+
+// place_prop, but on a tilted surface it tries the pixels within
+// kMaxSupportNudgePx, nearest first; `used` gets the pixel the prop stands on.
+// Throws as place_prop does when none of them is level.
+render::PlacedProp place_near_level_support(const render::Mesh& prop, const render::PinholeCamera& camera,
+                                            const render::Scene& world, const render::PropPlacement& placement,
+                                            render::PropPlacement* used = nullptr);
+
+// Throws std::invalid_argument as place_prop does (pixel outside, no support,
+// a surface tilted at and around the pixel).
 CompositeWorld build_composite_world(const inference::SceneModel& scene, const render::Mesh& prop,
                                      const render::PropPlacement& placement);
 

@@ -42,7 +42,7 @@ PlacedProp place_prop(const Mesh& prop, const PinholeCamera& camera, const Scene
     std::ostringstream msg;
     msg << "the surface at pixel " << where.str() << " is tilted " << static_cast<int>(std::lround(tilt_deg))
         << " degrees from horizontal (a wall?); place the prop on the floor or a table top";
-    throw std::invalid_argument(msg.str());
+    throw TiltedSupportError(msg.str());
   }
 
   const Eigen::AlignedBox3f box = prop.bounds();

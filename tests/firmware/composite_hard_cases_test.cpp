@@ -10,6 +10,7 @@
 #include <limits>
 #include <memory>
 #include <numbers>
+#include <optional>
 #include <opencv2/imgproc.hpp>
 
 #include "compositor.h"
@@ -230,6 +231,51 @@ TEST_F(CompositeHardCases, PropSunkHalfwayIntoTheFloor) {
   EXPECT_TRUE(cv::checkRange(a.composite));
   EXPECT_GT(cv::countNonZero(a.coverage > 0.5f), 10) << "the upper half stands out of the floor";
   EXPECT_TRUE(identical(a.composite, b.composite));
+}
+
+// A spot on one steep triangle of the depth mesh amid level floor (a spike
+// of depth noise) stands on the nearest level pixel; a wall stays refused.
+TEST_F(CompositeHardCases, ASpotOnASpikeOfDepthNoiseStandsBesideIt) {
+  inference::SceneModel spiky = shot_->truth;
+  spiky.depth = shot_->truth.depth.clone();
+  const render::PinholeCamera camera = spiky.camera();
+  const Eigen::Vector2d at = free_floor_pixel(shot_->room);
+  // A vertex of the step-2 depth mesh, pulled 7% toward the camera.
+  const int u = 2 * static_cast<int>(std::lround(at.x() / 2)), v = 2 * static_cast<int>(std::lround(at.y() / 2));
+  spiky.depth.at<float>(v, u) *= 0.93f;
+  render::Scene world;
+  world.add_mesh(render::mesh_from_depth(spiky.depth, spiky.albedo, camera), render::Layer::Background);
+  world.commit();
+  const render::Mesh cube = load_prop("cube");
+  const render::PropPlacement asked{static_cast<double>(u), static_cast<double>(v), 0.3, 0.0};
+  EXPECT_THROW(render::place_prop(cube, camera, world, asked), render::TiltedSupportError);
+  render::PropPlacement used;
+  const render::PlacedProp placed = place_near_level_support(cube, camera, world, asked, &used);
+  const double moved = std::max(std::abs(used.pixel_u - asked.pixel_u), std::abs(used.pixel_v - asked.pixel_v));
+  EXPECT_GT(moved, 0.0);
+  EXPECT_LE(moved, kMaxSupportNudgePx);
+  EXPECT_GT(placed.support_normal.y(), std::cos(render::kMaxSupportTiltDeg * kDegToRad));
+  EXPECT_TRUE(placed.world_from_prop.matrix().allFinite());
+  // The same again: the search is deterministic.
+  render::PropPlacement again;
+  place_near_level_support(cube, camera, world, asked, &again);
+  EXPECT_EQ(again.pixel_u, used.pixel_u);
+  EXPECT_EQ(again.pixel_v, used.pixel_v);
+
+  // A wall pixel whose whole neighbourhood is wall: still refused.
+  const int margin = kMaxSupportNudgePx + 3;
+  std::optional<cv::Point> wall;
+  for (int y = margin; y < kHeight - margin && !wall; ++y)
+    for (int x = margin; x < kWidth - margin && !wall; ++x) {
+      bool all_wall = true;
+      for (int dy = -margin; dy <= margin && all_wall; ++dy)
+        for (int dx = -margin; dx <= margin && all_wall; ++dx)
+          all_wall = std::abs(spiky.normals.at<cv::Vec3f>(y + dy, x + dx)[1]) < 0.1f;
+      if (all_wall) wall = cv::Point(x, y);
+    }
+  ASSERT_TRUE(wall.has_value()) << "the room shows a wall";
+  const render::PropPlacement on_wall{static_cast<double>(wall->x), static_cast<double>(wall->y), 0.3, 0.0};
+  EXPECT_THROW(place_near_level_support(cube, camera, world, on_wall), render::TiltedSupportError);
 }
 
 // The camera ends up inside the cube, and under the chair's seat.

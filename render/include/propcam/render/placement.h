@@ -3,6 +3,7 @@
 #pragma once
 
 #include <Eigen/Geometry>
+#include <stdexcept>
 #include <string>
 
 #include "propcam/render/camera.h"
@@ -26,10 +27,16 @@ struct PlacedProp {
 // Largest tilt of a surface from horizontal that still counts as a support.
 constexpr double kMaxSupportTiltDeg = 30.0;
 
+// The surface seen at the placement pixel is steeper than kMaxSupportTiltDeg.
+struct TiltedSupportError : std::invalid_argument {
+  using std::invalid_argument::invalid_argument;
+};
+
 // Finds the support point seen at the placement pixel in `background` (a
 // committed scene) and returns the prop's transform. Throws
 // std::invalid_argument with a user-facing message when the pixel is outside
-// the image, sees nothing, or sees a surface that is not horizontal.
+// the image or sees nothing, and TiltedSupportError when it sees a surface
+// that is not horizontal.
 PlacedProp place_prop(const Mesh& prop, const PinholeCamera& camera, const Scene& background,
                       const PropPlacement& placement);
 
