@@ -19,6 +19,7 @@
 #include "propcam/capture/image_file.h"
 #include "propcam/inference/infer.h"
 #include "propcam/inference/lighting.h"
+#include "propcam/inference/support_planes.h"
 #include "synthetic_truth.h"
 
 namespace propcam::firmware {
@@ -123,6 +124,7 @@ struct Errors {
   // Streets: the brightest far light against the true sun, in the camera's
   // frame (the estimate's world may be turned against the truth's).
   double sun_deg = std::nan(""), sun_elevation_deg = std::nan(""), true_sun_elevation_deg = std::nan("");
+  double world_turn_deg = 0;  // how far the estimate's world axes are turned from the truth's
   int lights = 0;
 };
 
@@ -149,9 +151,21 @@ double composite_error(const Shot& s, const cv::Mat& composite) {
 }
 
 // The light, its irradiance and the composite of an estimated scene.
+//
+// The estimate's world and the truth's share only the camera: the inferred
+// world axes are the scene's vanishing directions, whose order and sign
+// depend on the view (looking across a street, the estimate's Z is the
+// truth's X). So the probe is the point at the same place relative to the
+// camera, and light vectors are compared in the camera's frame.
 void score_scene(const Shot& s, const inference::SceneModel& est, const render::Mesh& prop, int spp, Errors& e) {
-  const LightAtPoint l = light_at(est.light_rig(), s.probe);
-  e.direction_deg = angle_deg(l.vector, s.truth_light.vector);
+  const render::PinholeCamera& true_camera = s.shot.room.camera;
+  const render::PinholeCamera est_camera = est.camera();
+  const Eigen::Matrix3d est_from_true = est_camera.R_world_from_cam * true_camera.R_world_from_cam.transpose();
+  const Vector3f probe = (est_camera.center_world + est_from_true * (s.probe.cast<double>() - true_camera.center_world)).cast<float>();
+  const LightAtPoint l = light_at(est.light_rig(), probe);
+  e.direction_deg = angle_deg(est_camera.R_world_from_cam.transpose() * l.vector,
+                              true_camera.R_world_from_cam.transpose() * s.truth_light.vector);
+  e.world_turn_deg = std::acos(std::clamp((est_from_true.trace() - 1.0) / 2.0, -1.0, 1.0)) * kRadToDeg;
   e.irradiance_rel = s.truth_light.irradiance_up > 0 ? std::abs(l.irradiance_up / s.truth_light.irradiance_up - 1.0)
                                                      : std::nan("");
   e.composite_rel = composite_error(s, composite_like_the_cli(s.shot.photo_linear, est, prop, s.placement, spp));
@@ -190,6 +204,23 @@ Errors evaluate(const Shot& s, const inference::InferenceOptions& o, const rende
   }
   score_scene(s, est, prop, spp, e);
   return e;
+}
+
+// The oracle: the geometry replaced by the truth's (camera, depth, normals;
+// support planes found again on them), the rest inferred as usual. What the
+// lighting stages reach when the geometry is right; no device has it.
+inference::GeometryEstimate true_geometry(const Shot& s) {
+  inference::GeometryEstimate g = s.geometry;
+  const inference::SceneModel& truth = s.shot.truth;
+  g.pinhole = truth.camera();
+  g.camera.fx = truth.fx, g.camera.fy = truth.fy, g.camera.cx = truth.cx, g.camera.cy = truth.cy;
+  g.camera.R_world_from_cam = truth.R_world_from_cam;
+  g.depth = truth.depth.clone();
+  g.normals = truth.normals.clone();
+  inference::StageReport report;
+  g.planes = inference::find_support_planes(g.depth, g.normals, g.pinhole, inference::InferenceOptions{}.geometry.support,
+                                            report);
+  return g;
 }
 
 // The Khan-style baseline on the same geometry and albedo: the photo wrapped
@@ -277,6 +308,15 @@ std::vector<Config> configs(const std::vector<std::string>& sweeps) {
   if (wanted("sun")) {
     out.push_back({"sun", "sun searched from cast shadows", 2,
                    [](inference::InferenceOptions& o) { o.lighting.sun_from_shadows = true; }});
+    out.push_back({"sun", "searched direction, strength by the fit", 3, [](inference::InferenceOptions& o) {
+                     o.lighting.sun_from_shadows = true;
+                     o.lighting.sun_strength_from_shadows = false;
+                   }});
+    out.push_back({"sun", "searched on the photo, strength by the fit", 4, [](inference::InferenceOptions& o) {
+                     o.lighting.sun_from_shadows = true;
+                     o.lighting.sun_strength_from_shadows = false;
+                     o.lighting.sun_search.shading_only = false;
+                   }});
     out.push_back({"sun", "16 sun hypotheses, by fit error", 0,
                    [](inference::InferenceOptions& o) { o.lighting.sun_from_shading = false; }});
   }
@@ -347,7 +387,7 @@ json run_lighting_bench(const LightingBenchOptions& o) {
       scenes.push_back({{"scene", s.name}, {"direction_deg", number_or_null(e.direction_deg)},
                         {"irradiance_rel", number_or_null(e.irradiance_rel)}, {"rerender_rel_rms", number_or_null(e.rerender)},
                         {"composite_rel_rmse", number_or_null(e.composite_rel)}, {"gamma", e.gamma},
-                        {"lights", e.lights}, {"seconds", e.seconds}, {"region_pixels", cv::countNonZero(s.region)}});
+                        {"lights", e.lights}, {"seconds", e.seconds}, {"world_turn_deg", e.world_turn_deg}, {"region_pixels", cv::countNonZero(s.region)}});
       if (std::isfinite(e.true_sun_elevation_deg))
         scenes.back().update({{"sun_deg", number_or_null(e.sun_deg)}, {"sun_elevation_deg", number_or_null(e.sun_elevation_deg)},
                               {"true_sun_elevation_deg", e.true_sun_elevation_deg}});
@@ -364,6 +404,16 @@ json run_lighting_bench(const LightingBenchOptions& o) {
       c.apply(opts);
       return evaluate(s, opts, prop, o.spp);
     });
+  // Only when named: it is a diagnosis, not a knob.
+  if (std::find(o.sweeps.begin(), o.sweeps.end(), "oracle") != o.sweeps.end())
+    for (const bool search : {false, true})
+      add_row("oracle", search ? "true geometry, sun searched" : "true camera and depth", search, [&](const Shot& s) {
+        Shot with_truth = s;
+        with_truth.geometry = true_geometry(s);
+        inference::InferenceOptions opts;
+        opts.lighting.sun_from_shadows = search;
+        return evaluate(with_truth, opts, prop, o.spp);
+      });
   return {{"size", {o.width, o.height}}, {"spp", o.spp}, {"prop", o.prop}, {"prop_height_m", height}, {"rows", rows}};
 }
 
@@ -443,7 +493,7 @@ CLI::App* add_bench_lighting_command(CLI::App& bench, LightingBenchArgs& a) {
   cmd->add_option("--spp", a.options.spp, "Samples per pixel of photos, references and composites")->check(CLI::PositiveNumber);
   cmd->add_option("--prop", a.options.prop, "Prop inserted for the composite error");
   cmd->add_option("--height", a.options.prop_height_m, "Prop height in metres (0: its natural height)");
-  cmd->add_option("--sweeps", a.sweeps, "Comma-separated subset of basis_spp,basis_width,fit_pixels,superpixels,tint,ibl,sky,sun,albedo,response (default: all)");
+  cmd->add_option("--sweeps", a.sweeps, "Comma-separated subset of basis_spp,basis_width,fit_pixels,superpixels,tint,ibl,sky,sun,albedo,response (default: all), or oracle (the true camera and depth; only when named)");
   cmd->add_option("--plot", a.options.plot_dir, "Write lighting.png (gnuplot) to this folder");
   cmd->add_flag("--json", a.json_out, "Machine-readable output");
   return cmd;
@@ -451,7 +501,7 @@ CLI::App* add_bench_lighting_command(CLI::App& bench, LightingBenchArgs& a) {
 
 int run_bench_lighting_command(LightingBenchArgs a) {
   parse_bench_size(a.size, 16, a.options.width, a.options.height);
-  a.options.sweeps = parse_sweeps(a.sweeps, {"default", "basis_spp", "basis_width", "fit_pixels", "superpixels", "tint", "ibl", "sky", "sun", "albedo", "response"});
+  a.options.sweeps = parse_sweeps(a.sweeps, {"default", "basis_spp", "basis_width", "fit_pixels", "superpixels", "tint", "ibl", "sky", "sun", "albedo", "response", "oracle"});
   a.options.quiet = a.json_out;
   const json result = run_lighting_bench(a.options);
   if (!a.options.plot_dir.empty()) plot_lighting_bench(result, a.options.plot_dir);

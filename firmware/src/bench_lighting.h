@@ -21,7 +21,7 @@ struct LightingBenchOptions {
   int spp = 32;             // photo, reference and composite samples per pixel
   std::string prop = "cube";
   double prop_height_m = 0.4;
-  std::vector<std::string> sweeps;  // empty: all (basis_spp, basis_width, fit_pixels, response)
+  std::vector<std::string> sweeps;  // empty: all knobs (basis_spp, basis_width, ...); "oracle" only when named
   std::string plot_dir;     // empty: no plots
   bool quiet = false;
 };

@@ -464,21 +464,27 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
     const SunFromShadows found =
         sun_from_shadows(scene, fit_camera, fit_photo, fit_albedo, basis.back(), usable, options.sun_search, ranked_sun_directions);
     sun_search_report = {{"found", found.found}, {"direction", {found.direction.x(), found.direction.y(), found.direction.z()}},
-                         {"irradiance_per_sky", found.irradiance_per_sky}, {"variance_no_sun", found.variance_no_sun},
+                         {"irradiance_per_sky", found.irradiance_per_sky},
+                         {"best_direction", {found.best_direction.x(), found.best_direction.y(), found.best_direction.z()}},
+                         {"best_irradiance_per_sky", found.best_irradiance_per_sky},
+                         {"variance_ambient", found.variance_ambient}, {"variance_no_sun", found.variance_no_sun},
                          {"variance", found.variance}, {"pixels", found.pixels}, {"groups", found.groups},
                          {"hypotheses", found.hypotheses}, {"ranked_directions", ranked_sun_directions.size()}};
-    if (found.found) {
+    const bool tied = options.sun_strength_from_shadows;
+    if (found.found || (!tied && found.hypotheses > 0 && found.best_irradiance_per_sky > 0)) {
       LightSource sun;
       sun.type = LightSource::Type::Sun;
-      sun.direction = found.direction;
+      sun.direction = found.found ? found.direction : found.best_direction;
       const int at = k - 1;
       out.lights.insert(out.lights.begin() + at, sun);
       colours.insert(colours.begin() + at, Vector3d::Ones());
       std::vector<cv::Mat> sun_basis =
           render::render_background_light_images(scene, fit_camera, make_light_rig({sun}, true), settings);
       basis.insert(basis.begin() + at, sun_basis.front());
-      searched_sun = at;
-      sun_per_sky = found.irradiance_per_sky;
+      if (tied) {
+        searched_sun = at;
+        sun_per_sky = found.irradiance_per_sky;
+      }
       ++k;
     }
     sun_search_report["seconds"] = seconds_since(search_start);

@@ -236,8 +236,12 @@ SunFromShadows sun_from_shadows(const render::Scene& scene, const render::Pinhol
   out.variance = best_variance;
   out.found = std::isfinite(best_variance) && best_ratio > 0 &&
               best_variance < (1.0 - options.min_variance_explained) * out.variance_ambient;
+  if (std::isfinite(best_variance)) {
+    out.best_direction = sun_direction(best_elevation, best_azimuth);
+    out.best_irradiance_per_sky = best_ratio;
+  }
   if (out.found) {
-    out.direction = sun_direction(best_elevation, best_azimuth);
+    out.direction = out.best_direction;
     out.irradiance_per_sky = best_ratio;
   }
   return out;

@@ -79,6 +79,10 @@ struct LightingOptions {
   // needs an albedo that keeps the shadows out, and the estimated one does
   // not (`propcam bench lighting --sweeps sun`; inference/README.md).
   bool sun_from_shadows = false;
+  // With the search on: true, the search's sun must pass its test and is
+  // weighed with the sky at the ratio its shadows set; false, the best
+  // searched direction is always a candidate and the fit weighs it alone.
+  bool sun_strength_from_shadows = true;
   SunFromShadowsOptions sun_search;
   uint64_t seed = 11;
 };

@@ -49,6 +49,10 @@ struct SunFromShadows {
   // Irradiance on a surface facing the sun, per unit weight of the sky's
   // environment (both in the renderer's units).
   double irradiance_per_sky = 0.0;
+  // The best hypothesis whether or not it passed the test: its direction
+  // and ratio (UnitY and 0 when nothing could be scored).
+  Eigen::Vector3d best_direction = Eigen::Vector3d::UnitY();
+  double best_irradiance_per_sky = 0.0;
   // Grouped log-luminance variance left with no sun, with the best ambient
   // light (SunFromShadowsOptions::min_variance_explained) and with the sun found.
   double variance_no_sun = 0.0, variance_ambient = 0.0, variance = 0.0;
