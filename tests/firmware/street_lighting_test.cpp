@@ -100,3 +100,48 @@ TEST(StreetLighting, TheSunSearchedFromShadowsIsOneSunWeighedWithTheSky) {
 
 }  // namespace
 }  // namespace propcam::firmware
+
+namespace propcam::firmware {
+namespace {
+
+// With the search's strength left to the fit
+// (LightingOptions::sun_strength_from_shadows = false), the best searched
+// direction is the street's one sun candidate, found or not, and what the
+// search reports as its best direction is that sun's.
+TEST(StreetLighting, TheSearchedDirectionWithTheFitsStrengthIsTheOneSunCandidate) {
+  render::SyntheticStreetSpec spec;
+  spec.width = 320;
+  spec.height = 240;
+  spec.seed = 5;
+  render::RenderSettings settings;
+  settings.samples_per_pixel = 16;
+  const SyntheticShot shot = shoot_synthetic_street(spec, settings);
+  const inference::GeometryEstimate g = inference::infer_geometry(shot.photo_linear, inference::InferenceOptions{});
+  ASSERT_FALSE(g.indoor);
+  inference::InferenceOptions o;
+  o.lighting.sun_from_shadows = true;
+  o.lighting.sun_strength_from_shadows = false;
+  const inference::SceneModel est = inference::complete_scene(shot.photo_linear, g, o);
+  EXPECT_NO_THROW(est.validate());
+  nlohmann::json search;
+  for (const auto& r : est.reports)
+    if (r.stage == "light_intensities") search = r.details.at("sun_from_shadows");
+  ASSERT_TRUE(search.is_object());
+  ASSERT_GT(search.at("best_irradiance_per_sky").get<double>(), 0.0);
+  const Eigen::Vector3d best(search["best_direction"][0].get<double>(), search["best_direction"][1].get<double>(),
+                             search["best_direction"][2].get<double>());
+  EXPECT_NEAR(best.norm(), 1.0, 1e-9);
+  EXPECT_GT(best.y(), 0.0) << "the sun is above the horizon";
+  int suns = 0;
+  for (const auto& l : est.lights)
+    if (l.type == inference::LightSource::Type::Sun) {
+      ++suns;
+      EXPECT_LT((l.direction - best).norm(), 1e-9);
+      EXPECT_TRUE(l.intensity.allFinite());
+      EXPECT_GE(l.intensity.minCoeff(), 0.0);  // the fit may weigh it to nothing
+    }
+  EXPECT_LE(suns, 1);
+}
+
+}  // namespace
+}  // namespace propcam::firmware
