@@ -63,10 +63,10 @@ TEST(StreetLighting, TheSkyNotTheAssumedMeanSetsTheAlbedoScale) {
 namespace propcam::firmware {
 namespace {
 
-// With the sun searched from cast shadows (off by default), a street's fit
-// keeps at most one sun, of the searched kind, weighed with the sky, and the
-// search says what it tried.
-TEST(StreetLighting, TheSunSearchedFromShadowsIsOneSunWeighedWithTheSky) {
+// Street 5 inferred with the sun searched from cast shadows (off by
+// default); `tied`: LightingOptions::sun_strength_from_shadows. `search`
+// gets the search's report.
+inference::SceneModel street_with_the_sun_searched(bool tied, nlohmann::json& search) {
   render::SyntheticStreetSpec spec;
   spec.width = 320;
   spec.height = 240;
@@ -75,14 +75,23 @@ TEST(StreetLighting, TheSunSearchedFromShadowsIsOneSunWeighedWithTheSky) {
   settings.samples_per_pixel = 16;
   const SyntheticShot shot = shoot_synthetic_street(spec, settings);
   const inference::GeometryEstimate g = inference::infer_geometry(shot.photo_linear, inference::InferenceOptions{});
-  ASSERT_FALSE(g.indoor);
+  EXPECT_FALSE(g.indoor);
   inference::InferenceOptions o;
   o.lighting.sun_from_shadows = true;
-  const inference::SceneModel est = inference::complete_scene(shot.photo_linear, g, o);
-  EXPECT_NO_THROW(est.validate());
-  nlohmann::json search;
+  o.lighting.sun_strength_from_shadows = tied;
+  inference::SceneModel est = inference::complete_scene(shot.photo_linear, g, o);
   for (const auto& r : est.reports)
     if (r.stage == "light_intensities") search = r.details.at("sun_from_shadows");
+  return est;
+}
+
+// With the sun searched from cast shadows, a street's fit
+// keeps at most one sun, of the searched kind, weighed with the sky, and the
+// search says what it tried.
+TEST(StreetLighting, TheSunSearchedFromShadowsIsOneSunWeighedWithTheSky) {
+  nlohmann::json search;
+  const inference::SceneModel est = street_with_the_sun_searched(true, search);
+  EXPECT_NO_THROW(est.validate());
   ASSERT_TRUE(search.is_object());
   EXPECT_GT(search.at("hypotheses").get<int>(), 100);
   int suns = 0, far_quads = 0;
@@ -98,34 +107,14 @@ TEST(StreetLighting, TheSunSearchedFromShadowsIsOneSunWeighedWithTheSky) {
   EXPECT_EQ(far_quads, 0);  // no hypotheses beside the searched sun
 }
 
-}  // namespace
-}  // namespace propcam::firmware
-
-namespace propcam::firmware {
-namespace {
-
 // With the search's strength left to the fit
 // (LightingOptions::sun_strength_from_shadows = false), the best searched
 // direction is the street's one sun candidate, found or not, and what the
 // search reports as its best direction is that sun's.
 TEST(StreetLighting, TheSearchedDirectionWithTheFitsStrengthIsTheOneSunCandidate) {
-  render::SyntheticStreetSpec spec;
-  spec.width = 320;
-  spec.height = 240;
-  spec.seed = 5;
-  render::RenderSettings settings;
-  settings.samples_per_pixel = 16;
-  const SyntheticShot shot = shoot_synthetic_street(spec, settings);
-  const inference::GeometryEstimate g = inference::infer_geometry(shot.photo_linear, inference::InferenceOptions{});
-  ASSERT_FALSE(g.indoor);
-  inference::InferenceOptions o;
-  o.lighting.sun_from_shadows = true;
-  o.lighting.sun_strength_from_shadows = false;
-  const inference::SceneModel est = inference::complete_scene(shot.photo_linear, g, o);
-  EXPECT_NO_THROW(est.validate());
   nlohmann::json search;
-  for (const auto& r : est.reports)
-    if (r.stage == "light_intensities") search = r.details.at("sun_from_shadows");
+  const inference::SceneModel est = street_with_the_sun_searched(false, search);
+  EXPECT_NO_THROW(est.validate());
   ASSERT_TRUE(search.is_object());
   ASSERT_GT(search.at("best_irradiance_per_sky").get<double>(), 0.0);
   const Eigen::Vector3d best(search["best_direction"][0].get<double>(), search["best_direction"][1].get<double>(),
