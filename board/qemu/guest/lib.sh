@@ -69,12 +69,11 @@ hold() {
 # guest's init chroots) without SYSTEMD_IGNORE_CHROOT.
 udev_start() {
   [ -x /lib/systemd/systemd-udevd ] || { log "no systemd-udevd (apt-get install udev: scripts/setup.sh)"; return 1; }
-  export SYSTEMD_IGNORE_CHROOT=1
-  /lib/systemd/systemd-udevd --daemon &&
-    udevadm trigger --action=add --subsystem-match=media --subsystem-match=video4linux &&
-    udevadm settle --timeout=60
+  SYSTEMD_IGNORE_CHROOT=1 /lib/systemd/systemd-udevd --daemon &&
+    SYSTEMD_IGNORE_CHROOT=1 udevadm trigger --action=add --subsystem-match=media --subsystem-match=video4linux &&
+    SYSTEMD_IGNORE_CHROOT=1 udevadm settle --timeout=60
 }
-udev_stop() { udevadm control --exit; }
+udev_stop() { SYSTEMD_IGNORE_CHROOT=1 udevadm control --exit; }
 
 # The framebuffer console must not draw over the appliance.
 unbind_fbcon() {

@@ -25,8 +25,6 @@ stick_watch > "$OUT/stick_watch.log" 2>&1 &
 watcher=$!
 # vivid: no on-screen text, so its frames are its 75% colour bars only.
 v4l2-ctl -d /dev/video0 -c osd_text_mode=2
-# Before any propcam process starts: libcamera enumerates once, at start.
-udev_start > "$OUT/udev.log" 2>&1 || log "udevd failed: libcamera will see no camera"
 step devices ready
 
 # 1. propcamd on vivid, and a still through its socket.
@@ -35,8 +33,14 @@ mkdir -p /run/propcam
   > "$OUT/propcamd.log" 2>&1 &
 daemon=$!
 # (Every propcam process costs tens of seconds of dynamic linking under TCG:
-# the camera list runs beside the rest.)
-"$propcam" cameras --json > "$OUT/cameras.json" 2> "$OUT/cameras.log" &
+# the camera list runs beside the rest.) udevd first, beside propcamd's start:
+# libcamera enumerates once, when a process starts it; udev.done marks it settled.
+{
+  udev_start > "$OUT/udev.log" 2>&1 || log "udevd failed: libcamera will see no camera"
+  : > /run/propcam/udev.done
+  step udevd settled
+  "$propcam" cameras --json > "$OUT/cameras.json" 2> "$OUT/cameras.log"
+} &
 cameras=$!
 t=0
 until [ -S /run/propcam/capture.sock ]; do
@@ -48,6 +52,11 @@ step propcamd serving
 # keeps one vCPU busy, the other is free). 960x540: vimc's scaler triples the
 # sensor's size, so a side that is no multiple of 3 would be adjusted; the
 # still is larger than the viewfinder, as on the Pi (the stream restarts).
+t=0
+until [ -e /run/propcam/udev.done ]; do
+  pause 0.2; t=$((t + 1))
+  [ "$t" -lt 600 ] || { log "udevd never settled"; break; }
+done
 "$propcamd" --socket /run/propcam/vimc.sock --camera libcamera:auto --width 960 --height 540 --format RGB24 \
   > "$OUT/propcamd_vimc.log" 2>&1 &
 vimc_daemon=$!
