@@ -1,5 +1,5 @@
 # The qemu board's system test session (bash), one boot (vm.py --run): what
-# tests/board/qemu_system_test.cpp checks is left in /run/vm.
+# tests/qemu/qemu_board_test.cpp checks is left in /run/vm.
 #   1. propcamd on vivid (the V4L2 backend), a still through it: shot.png;
 #      a second propcamd on vimc (the libcamera backend, libcamera:auto as on
 #      the Pi), a still through it while the appliance starts: vimc.png
