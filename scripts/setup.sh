@@ -32,6 +32,10 @@ packages=(
   # the guest's tools (gpiod, v4l-utils), the VM driver (python3); the kernel and
   # its sources are fetched by board/qemu/fetch.sh (apt-get download)
   qemu-system-x86 busybox-static cpio kmod xz-utils dosfstools mtools gpiod v4l-utils python3
+  # the qemu board's libcamera camera (vimc): libcamera lists only devices udevd
+  # has initialised, so the guest runs the host's systemd-udevd; cam to check
+  # by hand; the IPA modules (vimc's among them) for libcamera's pipelines
+  udev libcamera-tools libcamera-ipa
 )
 
 missing=()

@@ -171,6 +171,54 @@ TEST_F(QemuBoard, AStillFromVividThroughPropcamdShowsItsColourBars) {
   }
 }
 
+// (1b) vimc (built out of tree) through the libcamera backend: a second
+// propcamd on libcamera:auto, as the Pi's propcamd.service runs, and a still
+// through its socket. vimc's sensor draws the same 75% colour bars as vivid,
+// with its settings written in the top left corner (white on a black box);
+// the still is 1920x1080, from libcamera's vimc pipeline (sensor 640x360,
+// debayer, x3 scaler), not a V4L2 node.
+TEST_F(QemuBoard, ALibcameraStillFromVimc) {
+  const std::string logs = slurp(boot().out / "shoot_vimc.log") + "\n--- propcamd\n" +
+                           slurp(boot().out / "propcamd_vimc.log") + "\n--- udev\n" + slurp(boot().out / "udev.log");
+  ASSERT_EQ(slurp(boot().out / "shoot_vimc.rc"), "0\n") << logs;
+  EXPECT_EQ(slurp(boot().out / "propcamd_vimc.rc"), "0\n") << logs;
+  EXPECT_NE(slurp(boot().out / "propcamd_vimc.log").find("serving libcamera:auto"), std::string::npos) << logs;
+  const json shoot = read_json("shoot_vimc.json");
+  ASSERT_TRUE(shoot.is_object()) << slurp(boot().out / "shoot_vimc.json");
+  const std::string camera = shoot.value("camera", "");
+  EXPECT_EQ(camera.rfind("libcamera:", 0), 0u) << camera;
+  EXPECT_NE(camera.find("vimc"), std::string::npos) << camera;
+  EXPECT_EQ(shoot["format"], "RGB24");
+  EXPECT_EQ(shoot["size"], json::array({1920, 1080}));
+  // `propcam cameras` (run beside propcamd) lists it too, as a libcamera camera.
+  const json cameras = read_json("cameras.json");
+  bool listed = false;
+  for (const auto& c : cameras.is_array() ? cameras : json::array())
+    listed |= c.value("backend", "") == "libcamera" && c.value("id", "").find("vimc") != std::string::npos;
+  EXPECT_TRUE(listed) << slurp(boot().out / "cameras.json");
+
+  const cv::Mat still = read_rgb(boot().out / "vimc.png");
+  ASSERT_EQ(still.cols, 1920);
+  ASSERT_EQ(still.rows, 1080);
+  cv::Scalar mean, stddev;
+  cv::meanStdDev(still, mean, stddev);
+  EXPECT_GT(stddev[0] + stddev[1] + stddev[2], 150.0) << "not a black or constant frame";
+  // Eight vertical bars, left to right, below the text and at the bottom.
+  const cv::Vec3b bars[8] = {{191, 191, 191}, {191, 191, 0}, {0, 191, 191}, {0, 191, 0},
+                             {191, 0, 191},   {191, 0, 0},   {0, 0, 191},   {0, 0, 0}};
+  for (const int y : {400, 700, 1040})
+    for (int i = 0; i < 8; ++i) {
+      const cv::Vec3b got = still.at<cv::Vec3b>(y, i * 240 + 120);
+      for (int c = 0; c < 3; ++c)
+        EXPECT_NEAR(got[c], bars[i][c], 24) << "bar " << i << " row " << y << " channel " << c;
+    }
+  // The text's black box covers much of the white bar's top (vivid's text is off).
+  cv::Mat grey, dark;
+  cv::cvtColor(still(cv::Rect(60, 60, 170, 160)), grey, cv::COLOR_RGB2GRAY);
+  cv::threshold(grey, dark, 64, 255, cv::THRESH_BINARY_INV);
+  EXPECT_GT(cv::countNonZero(dark), grey.total() / 3) << "vimc's sensor text in the top left corner";
+}
+
 // (2) gpio-sim line pulls through libgpiod reach the state machine: the
 // session walks every state the presses lead to, none rejected.
 TEST_F(QemuBoard, GpioSimPressesDriveTheAppliance) {

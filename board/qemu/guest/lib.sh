@@ -62,6 +62,19 @@ hold() {
   pause 0.3
 }
 
+# udevd for libcamera: its device enumerator (libudev) lists only the media
+# and video4linux devices udevd has initialised (/run/udev/data), so without
+# udevd it sees no camera. The host's systemd-udevd (package udev) handles
+# just those two subsystems; udevadm would ignore requests in a chroot (the
+# guest's init chroots) without SYSTEMD_IGNORE_CHROOT.
+udev_start() {
+  [ -x /lib/systemd/systemd-udevd ] || { log "no systemd-udevd (apt-get install udev: scripts/setup.sh)"; return 1; }
+  SYSTEMD_IGNORE_CHROOT=1 /lib/systemd/systemd-udevd --daemon &&
+    SYSTEMD_IGNORE_CHROOT=1 udevadm trigger --action=add --subsystem-match=media --subsystem-match=video4linux &&
+    SYSTEMD_IGNORE_CHROOT=1 udevadm settle --timeout=60
+}
+udev_stop() { SYSTEMD_IGNORE_CHROOT=1 udevadm control --exit; }
+
 # The framebuffer console must not draw over the appliance.
 unbind_fbcon() {
   for f in /sys/class/vtconsole/vtcon*/bind; do echo 0 > "$f" 2>/dev/null; done
