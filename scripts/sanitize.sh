@@ -4,8 +4,8 @@
 # error fails its test, and leaks are reported except the third-party ones
 # named in tests/sanitize/lsan.supp. Tests labelled slow_under_asan (over
 # about a minute under ASan, set in tests/CMakeLists.txt) and the soak and
-# qemu suites are left out; the release suite runs them. CI (scripts/test.sh)
-# runs this after the fuzz targets; PROPCAM_SETUP_DONE=1 skips setup.sh.
+# qemu suites are left out; the release suite runs them. PROPCAM_SETUP_DONE=1
+# skips setup.sh, for a caller that has run it (e.g. scripts/test.sh).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 [ -n "${PROPCAM_SETUP_DONE:-}" ] || bash scripts/setup.sh
