@@ -316,7 +316,9 @@ cv::Mat render_procedural_room(const ProceduralRoom& room, int width) {
     return room.window && std::abs(p.x()) <= kWindowHalfWidth && p.y() >= kWindowBottom && p.y() <= kWindowTop;
   };
   // Irradiance at a surface point from small area emitters (point approximation, no occlusion inside a box).
-  auto irradiance = [&](const Eigen::Vector3d& p, const Eigen::Vector3d& n) {
+  // Returns a Vector3d, not auto: `e + Constant(0.5)` is an Eigen expression that would
+  // read `e` after the lambda returned (stack-use-after-scope, found by ASan).
+  auto irradiance = [&](const Eigen::Vector3d& p, const Eigen::Vector3d& n) -> Eigen::Vector3d {
     Eigen::Vector3d e = Eigen::Vector3d::Zero();
     auto add = [&](const Eigen::Vector3d& centre, const Eigen::Vector3d& emitter_normal, double area,
                    const Eigen::Vector3d& radiance) {
