@@ -317,6 +317,9 @@ std::vector<Config> configs(const std::vector<std::string>& sweeps) {
                      o.lighting.sun_strength_from_shadows = false;
                      o.lighting.sun_search.shading_only = false;
                    }});
+    out.push_back({"sun", "24 hypotheses, elevations 15/35/60", 5, [](inference::InferenceOptions& o) {
+                     o.lighting.sun_elevations_deg = {15.0, 35.0, 60.0};
+                   }});
     out.push_back({"sun", "16 sun hypotheses, by fit error", 0,
                    [](inference::InferenceOptions& o) { o.lighting.sun_from_shading = false; }});
   }

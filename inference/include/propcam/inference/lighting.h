@@ -42,7 +42,7 @@ struct LightingOptions {
   int ceiling_grid = 3;                 // n x n panels
   double ceiling_panel_m = 0.6;
   int sun_azimuths = 8;
-  double sun_elevations_deg[2] = {25.0, 55.0};
+  std::vector<double> sun_elevations_deg = {25.0, 55.0};
   // Out-of-view light from the ranked IBL library (ibl_ranking.h): the light
   // regions of the best-ranked panoramas, turned so that the matched view
   // looks where the photo looks, join the candidates. `ibl_ranker` empty: the
