@@ -172,9 +172,8 @@ void score_scene(const Shot& s, const inference::SceneModel& est, const render::
   e.gamma = est.gamma;
   e.lights = static_cast<int>(est.lights.size());
   if (s.shot.room.lights.suns.empty()) return;
-  const Eigen::Matrix3d R_true = s.shot.room.camera.R_world_from_cam;
   const Vector3d true_sun = s.shot.room.lights.suns.front().direction.cast<double>().normalized();
-  const Vector3d centre = est.camera().center_world;
+  const Vector3d& centre = est_camera.center_world;
   double brightest = 0;
   Vector3d sun = Vector3d::Zero();
   for (const auto& l : est.lights) {
@@ -189,7 +188,7 @@ void score_scene(const Shot& s, const inference::SceneModel& est, const render::
   }
   e.true_sun_elevation_deg = std::asin(std::clamp(true_sun.y(), -1.0, 1.0)) * kRadToDeg;
   if (brightest <= 0) return;
-  e.sun_deg = angle_deg(est.R_world_from_cam.transpose() * sun, R_true.transpose() * true_sun);
+  e.sun_deg = angle_deg(est_camera.R_world_from_cam.transpose() * sun, true_camera.R_world_from_cam.transpose() * true_sun);
   e.sun_elevation_deg = std::asin(std::clamp(sun.y(), -1.0, 1.0)) * kRadToDeg;
 }
 

@@ -445,14 +445,11 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   std::vector<cv::Mat> basis = render::render_background_light_images(scene, fit_camera, rig, settings);
   // Pixels that inform the fit: not the sources themselves, not clipped.
   std::vector<cv::Point> used;
-  cv::Mat usable = cv::Mat::zeros(fit_h, fit_w, CV_8U);
   for (int y = 0; y < fit_h; ++y)
     for (int x = 0; x < fit_w; ++x) {
       const cv::Vec3f c = fit_photo.at<cv::Vec3f>(y, x);
-      if (fit_mask.at<uint8_t>(y, x) == 0 && fit_depth.at<float>(y, x) < render::kSkyDepthM && c[0] < kSaturatedLinear && c[1] < kSaturatedLinear && c[2] < kSaturatedLinear) {
+      if (fit_mask.at<uint8_t>(y, x) == 0 && fit_depth.at<float>(y, x) < render::kSkyDepthM && c[0] < kSaturatedLinear && c[1] < kSaturatedLinear && c[2] < kSaturatedLinear)
         used.push_back({x, y});
-        usable.at<uint8_t>(y, x) = 255;
-      }
     }
   // The searched sun (LightingOptions::sun_from_shadows) goes just before the
   // environment, with its own basis render; -1: none.
@@ -461,6 +458,8 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   nlohmann::json sun_search_report;
   if (search_sun) {
     const auto search_start = Clock::now();
+    cv::Mat usable = cv::Mat::zeros(fit_h, fit_w, CV_8U);  // the fit's pixels
+    for (const cv::Point& p : used) usable.at<uint8_t>(p) = 255;
     const SunFromShadows found =
         sun_from_shadows(scene, fit_camera, fit_photo, fit_albedo, basis.back(), usable, options.sun_search, ranked_sun_directions);
     sun_search_report = {{"found", found.found}, {"direction", {found.direction.x(), found.direction.y(), found.direction.z()}},
