@@ -407,7 +407,18 @@ json run_lighting_bench(const LightingBenchOptions& o) {
       return evaluate(s, opts, prop, o.spp);
     });
   // Only when named: it is a diagnosis, not a knob.
-  if (std::find(o.sweeps.begin(), o.sweeps.end(), "oracle") != o.sweeps.end())
+  if (std::find(o.sweeps.begin(), o.sweeps.end(), "oracle") != o.sweeps.end()) {
+    // A calibrated lens (the board's calibration, `--focal PX --fixed-focal`):
+    // the true focal length, everything else inferred. Unlike the rows below,
+    // a device can have this.
+    add_row("oracle", "calibrated lens", 0, [&](const Shot& s) {
+      inference::InferenceOptions opts;
+      opts.camera.prior_focal_px = s.shot.truth.fx;
+      opts.camera.fixed_focal = true;
+      Shot calibrated = s;
+      calibrated.geometry = inference::infer_geometry(s.shot.photo_linear, opts);
+      return evaluate(calibrated, opts, prop, o.spp);
+    });
     for (const bool search : {false, true})
       add_row("oracle", search ? "true geometry, sun searched" : "true camera and depth", search, [&](const Shot& s) {
         Shot with_truth = s;
@@ -416,6 +427,7 @@ json run_lighting_bench(const LightingBenchOptions& o) {
         opts.lighting.sun_from_shadows = search;
         return evaluate(with_truth, opts, prop, o.spp);
       });
+  }
   return {{"size", {o.width, o.height}}, {"spp", o.spp}, {"prop", o.prop}, {"prop_height_m", height}, {"rows", rows}};
 }
 
