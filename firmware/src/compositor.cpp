@@ -84,6 +84,11 @@ CompositeWorld build_composite_world(const inference::SceneModel& scene, const r
                                                        placement.pixel_v, footprint_radius_m);
   }
   world.add_mesh(render::mesh_from_depth(w.depth, scene.albedo, w.camera), render::Layer::Background);
+  // The facades the lighting continued out of the frame shade the prop as they shaded the basis renders.
+  if (!scene.hidden_facades.empty()) {
+    render::Mesh hidden = inference::hidden_facade_mesh(scene.hidden_facades, w.depth, w.camera);
+    if (!hidden.empty()) world.add_mesh(hidden, render::Layer::Background);
+  }
 
   // The prop is an instance: the background's BVH is built once, placement
   // looks at the background alone, and then the prop is moved into place.

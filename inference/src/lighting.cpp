@@ -9,6 +9,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "propcam/capture/image_file.h"
+#include "propcam/inference/hidden_facades.h"
 #include "propcam/inference/intensity_fit.h"
 #include "propcam/inference/light_classifier.h"
 #include "load_once.h"
@@ -431,6 +432,14 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   render::DepthMeshOptions mesh_options;
   mesh_options.step_pixels = 1;
   scene.add_mesh(render::mesh_from_depth(fit_depth, fit_albedo, fit_camera, mesh_options), render::Layer::Background);
+  // Outdoors the buildings that shade the street nearest the camera are
+  // mostly out of the frame: the seen facades are continued out of it.
+  std::vector<HiddenFacade>& facades = out.hidden_facades;
+  if (!indoor && options.hidden_facades && !cues.normals.empty() && cues.normals.size() == depth.size()) {
+    facades = find_hidden_facades(depth, cues.normals, albedo, camera, options.facades);
+    render::Mesh hidden = hidden_facade_mesh(facades, fit_depth, fit_camera, options.facades);
+    if (!hidden.empty()) scene.add_mesh(hidden, render::Layer::Background);
+  }
   scene.commit();
   // Area lights first, the environment last: the same order as out.lights,
   // so basis render i belongs to out.lights[i].
@@ -682,6 +691,7 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
                  {"fit_error_encoded", chosen.data_error},
                  {"basis_render_seconds", basis_seconds}, {"fit_seconds", seconds_since(fit_start)},
                  {"sun_shading_agreement", sun_agreement}, {"sun_from_shadows", sun_search_report},
+                 {"hidden_facades", facades.size()},
                  {"visible_sources", visible_sources}, {"hypotheses", hypotheses}, {"kept", out.lights.size()}};
   out.reports.push_back(fit);
   out.gamma = response;

@@ -140,6 +140,8 @@ void SceneModel::validate() const {
   for (const auto& l : lights)
     if (!l.intensity.allFinite() || !l.position.allFinite() || !l.corner.allFinite())
       throw std::runtime_error("scene model: non-finite light");
+  if (hidden_facades.size() > kMaxHiddenFacades) throw std::runtime_error("scene model: too many hidden facades");
+  for (const auto& f : hidden_facades) f.validate();
 }
 
 void save_scene(const SceneModel& scene, const std::string& folder) {
@@ -191,6 +193,12 @@ void save_scene(const SceneModel& scene, const std::string& folder) {
     planes.push_back(pj);
   }
   j["planes"] = planes;
+  json facades = json::array();
+  for (const auto& f : scene.hidden_facades)
+    facades.push_back({{"normal", vec(f.normal)}, {"offset", f.offset}, {"bottom_m", f.bottom_m}, {"top_m", f.top_m},
+                       {"seen", {f.seen_min, f.seen_max}}, {"continued", {f.along_min, f.along_max}},
+                       {"albedo", vec(f.albedo.cast<double>())}, {"pixels", f.pixels}});
+  j["hidden_facades"] = facades;
   json reports = json::array();
   for (const auto& r : scene.reports) reports.push_back(to_json(r));
   j["reports"] = reports;
@@ -261,6 +269,22 @@ SceneModel load_scene(const std::string& folder) {
         if (p.pixels < 0) throw std::runtime_error("a plane's pixel count is negative");
       }
       s.planes.push_back(p);
+    }
+    const json facades = j.value("hidden_facades", json::array());
+    if (!facades.is_array() || facades.size() > kMaxHiddenFacades) throw std::runtime_error("bad hidden_facades list");
+    for (const json& fj : facades) {
+      HiddenFacade f;
+      f.normal = vec3(fj.at("normal"), "normal");
+      f.offset = fj.at("offset");
+      f.bottom_m = fj.at("bottom_m");
+      f.top_m = fj.at("top_m");
+      f.seen_min = fj.at("seen").at(0);
+      f.seen_max = fj.at("seen").at(1);
+      f.along_min = fj.at("continued").at(0);
+      f.along_max = fj.at("continued").at(1);
+      f.albedo = vec3(fj.at("albedo"), "albedo").cast<float>();
+      f.pixels = json_int(fj.at("pixels"), "pixels");
+      s.hidden_facades.push_back(f);
     }
     for (const json& rj : j.value("reports", json::array())) {
       StageReport r;

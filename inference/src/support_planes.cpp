@@ -6,12 +6,17 @@
 #include <numbers>
 #include <stdexcept>
 
+#include "depth_samples.h"
 #include "propcam/render/depth_mesh.h"
 
 namespace propcam::inference {
 namespace {
 
 using Eigen::Vector3d;
+using depth_samples::for_each_surface_sample;
+using depth_samples::is_surface;
+using depth_samples::percentile;
+using depth_samples::world_point;
 
 // Heights are histogrammed over this range around the floor (metres).
 constexpr double kMinHeightM = -1.0;
@@ -27,18 +32,6 @@ constexpr double kMinFootprintM = 0.05;
 constexpr float kMinBaseNormalUp = 0.866f;
 // The flattened disc spans this many footprint radii.
 constexpr double kFlattenRadiusFactor = 2.0;
-
-Vector3d world_point(const render::PinholeCamera& c, double x, double y, double depth) {
-  return c.center_world + c.R_world_from_cam * Vector3d((x - c.cx) / c.fx * depth, (y - c.cy) / c.fy * depth, depth);
-}
-
-bool is_surface(float depth) { return std::isfinite(depth) && depth > 0 && depth < 0.5 * render::kSkyDepthM; }
-
-double percentile(std::vector<double> v, double p) {
-  const size_t k = std::min(v.size() - 1, static_cast<size_t>(p * (v.size() - 1) + 0.5));
-  std::nth_element(v.begin(), v.begin() + k, v.end());
-  return v[k];
-}
 
 void check_maps(const cv::Mat& depth, const cv::Mat& normals, const render::PinholeCamera& camera, const char* who) {
   if (depth.type() != CV_32F || normals.type() != CV_32FC3 || depth.size() != normals.size() ||
@@ -61,18 +54,13 @@ std::vector<SupportPlane> find_support_planes(const cv::Mat& depth, const cv::Ma
     Vector3d p;
   };
   std::vector<Sample> up;
-  int sampled = 0;
-  for (int y = step / 2; y < depth.rows; y += step)
-    for (int x = step / 2; x < depth.cols; x += step) {
-      ++sampled;
-      const float d = depth.at<float>(y, x);
-      if (!is_surface(d)) continue;
-      const cv::Vec3f n = normals.at<cv::Vec3f>(y, x);
-      if (!(n[1] >= cos_tilt)) continue;
-      const Vector3d p = world_point(camera, x, y, d);
-      if (!p.allFinite() || p.y() >= camera.center_world.y() || p.y() < kMinHeightM || p.y() > kMaxHeightM) continue;
-      up.push_back({p});
-    }
+  const int sampled = for_each_surface_sample(depth, step, [&](int x, int y, float d) {
+    const cv::Vec3f n = normals.at<cv::Vec3f>(y, x);
+    if (!(n[1] >= cos_tilt)) return;
+    const Vector3d p = world_point(camera, x, y, d);
+    if (!p.allFinite() || p.y() >= camera.center_world.y() || p.y() < kMinHeightM || p.y() > kMaxHeightM) return;
+    up.push_back({p});
+  });
   const int bins = static_cast<int>(std::ceil((kMaxHeightM - kMinHeightM) / o.bin_m));
   std::vector<double> hist(bins, 0.0);
   for (const auto& s : up) hist[std::clamp(static_cast<int>((s.p.y() - kMinHeightM) / o.bin_m), 0, bins - 1)] += 1;

@@ -2,11 +2,32 @@
 // scale that a single photo leaves open (LightingOptions::albedo_scale_from_sky).
 #include <gtest/gtest.h>
 
+#include "compositor.h"
 #include "propcam/inference/infer.h"
+#include "propcam/render/props.h"
 #include "synthetic_truth.h"
 
 namespace propcam::firmware {
 namespace {
+
+// A 320x240 generator street and the geometry inferred from it.
+struct InferredStreet {
+  SyntheticShot shot;
+  inference::GeometryEstimate geometry;
+};
+
+InferredStreet inferred_street(uint64_t seed, int samples_per_pixel) {
+  render::SyntheticStreetSpec spec;
+  spec.width = 320;
+  spec.height = 240;
+  spec.seed = seed;
+  render::RenderSettings settings;
+  settings.samples_per_pixel = samples_per_pixel;
+  InferredStreet s;
+  s.shot = shoot_synthetic_street(spec, settings);
+  s.geometry = inference::infer_geometry(s.shot.photo_linear, inference::InferenceOptions{});
+  return s;
+}
 
 struct Fitted {
   double albedo_scale = 0, mean_albedo = 0, brightest_light = 0;
@@ -33,14 +54,9 @@ Fitted fit_street(const SyntheticShot& shot, const inference::GeometryEstimate& 
 // the lights (it doubles the scale instead). Without it, the lights follow
 // the guess.
 TEST(StreetLighting, TheSkyNotTheAssumedMeanSetsTheAlbedoScale) {
-  render::SyntheticStreetSpec spec;
-  spec.width = 320;
-  spec.height = 240;
-  spec.seed = 4;  // sky in view, and a sun the fit keeps
-  render::RenderSettings settings;
-  settings.samples_per_pixel = 16;
-  const SyntheticShot shot = shoot_synthetic_street(spec, settings);
-  const inference::GeometryEstimate g = inference::infer_geometry(shot.photo_linear, inference::InferenceOptions{});
+  const InferredStreet street = inferred_street(4, 16);  // sky in view, and a sun the fit keeps
+  const SyntheticShot& shot = street.shot;
+  const inference::GeometryEstimate& g = street.geometry;
   ASSERT_FALSE(g.indoor);
   const Fitted a = fit_street(shot, g, 0.5, true), b = fit_street(shot, g, 0.25, true);
   ASSERT_GT(a.albedo_scale, 0.1);
@@ -67,14 +83,9 @@ namespace {
 // default); `tied`: LightingOptions::sun_strength_from_shadows. `search`
 // gets the search's report.
 inference::SceneModel street_with_the_sun_searched(bool tied, nlohmann::json& search) {
-  render::SyntheticStreetSpec spec;
-  spec.width = 320;
-  spec.height = 240;
-  spec.seed = 5;
-  render::RenderSettings settings;
-  settings.samples_per_pixel = 16;
-  const SyntheticShot shot = shoot_synthetic_street(spec, settings);
-  const inference::GeometryEstimate g = inference::infer_geometry(shot.photo_linear, inference::InferenceOptions{});
+  const InferredStreet street = inferred_street(5, 16);
+  const SyntheticShot& shot = street.shot;
+  const inference::GeometryEstimate& g = street.geometry;
   EXPECT_FALSE(g.indoor);
   inference::InferenceOptions o;
   o.lighting.sun_from_shadows = true;
@@ -130,6 +141,40 @@ TEST(StreetLighting, TheSearchedDirectionWithTheFitsStrengthIsTheOneSunCandidate
       EXPECT_GE(l.intensity.minCoeff(), 0.0);  // the fit may weigh it to nothing
     }
   EXPECT_LE(suns, 1);
+}
+
+}  // namespace
+}  // namespace propcam::firmware
+
+namespace propcam::firmware {
+namespace {
+
+// With LightingOptions::hidden_facades on (off by default), a street's seen
+// facades are continued out of the frame: the lighting reports them, the
+// scene model keeps them and the compositor's world holds them beside the
+// depth mesh and the prop.
+TEST(StreetLighting, HiddenFacadesReachTheSceneModelAndTheComposite) {
+  const InferredStreet street = inferred_street(5, 8);  // looking along the street, a facade on each side
+  const SyntheticShot& shot = street.shot;
+  const inference::GeometryEstimate& g = street.geometry;
+  ASSERT_FALSE(g.indoor);
+  inference::InferenceOptions o;
+  o.lighting.hidden_facades = true;
+  inference::SceneModel est = inference::complete_scene(shot.photo_linear, g, o);
+  ASSERT_FALSE(est.hidden_facades.empty());
+  for (const auto& r : est.reports)
+    if (r.stage == "light_intensities") EXPECT_EQ(r.details.at("hidden_facades").get<size_t>(), est.hidden_facades.size());
+  for (const auto& f : est.hidden_facades) {
+    EXPECT_NO_THROW(f.validate());
+    EXPECT_GE(f.top_m - f.bottom_m, 2.0);
+  }
+  const Eigen::Vector2d at = free_floor_pixel(shot.room);
+  const render::Mesh cube = render::make_prop("cube");
+  EXPECT_EQ(build_composite_world(est, cube, {at.x(), at.y(), 0.4, 0.0}).scene->mesh_count(), 3);
+  est.hidden_facades.clear();
+  EXPECT_EQ(build_composite_world(est, cube, {at.x(), at.y(), 0.4, 0.0}).scene->mesh_count(), 2);
+  // Off (the default), none.
+  EXPECT_TRUE(inference::complete_scene(shot.photo_linear, g, inference::InferenceOptions{}).hidden_facades.empty());
 }
 
 }  // namespace

@@ -11,6 +11,7 @@
 #include "catalogue.h"
 #include "propcam/inference/camera.h"
 #include "propcam/inference/depth_solve.h"
+#include "propcam/inference/hidden_facades.h"
 #include "propcam/inference/ibl_library.h"
 #include "propcam/inference/infer.h"
 #include "propcam/inference/intensity_fit.h"
@@ -65,6 +66,10 @@ void add_scene(Digest& d, const SceneModel& s) {
     d.text(p.name);
     add_matrix(d, p.normal);
     d.number(p.offset);
+  }
+  for (const HiddenFacade& f : s.hidden_facades) {
+    add_matrix(d, f.normal);
+    for (double v : {f.offset, f.bottom_m, f.top_m, f.along_min, f.along_max}) d.number(v);
   }
   for (const StageReport& r : s.reports) {
     d.text(r.stage);
@@ -310,6 +315,44 @@ void add_inference_cases(std::vector<HardCase>& cases) {
                      check(set_everywhere(j, "fx", -4.0), "setup: scene.json has fx");
                      hard_cases::write_text_file(file, j.dump());
                      load_scene((dir / "scene").string());
+                   }});
+  cases.push_back({"HiddenFacadesOfBrokenMaps", m,
+                   "find_hidden_facades and hidden_facade_mesh on a 64x48 view of a wall whose depth and normals are "
+                   "NaN, Inf, 0 or negative in stripes",
+                   "finite facades and a finite mesh with no cell in the frame", Expect::Result, {}, [](Digest& d) {
+                     render::PinholeCamera c = render::pinhole_with_fov(64, 48, 60);
+                     c.center_world = {0, 1.6, 0};
+                     cv::Mat depth(48, 64, CV_32F, cv::Scalar(10.f)), normals(48, 64, CV_32FC3, cv::Scalar(0.f, 0.f, 1.f));
+                     const float bad[] = {kNan, kInf, 0.f, -3.f};
+                     for (int x = 0; x < 64; x += 5) {
+                       depth.col(x).setTo(bad[x % 4]);
+                       normals.col(x + 1 < 64 ? x + 1 : x).setTo(cv::Scalar(bad[x % 4], 0.f, bad[(x + 1) % 4]));
+                     }
+                     const auto facades = find_hidden_facades(depth, normals, cv::Mat(), c);
+                     const render::Mesh mesh = hidden_facade_mesh(facades, depth, c);
+                     mesh.validate();
+                     for (const auto& f : facades) {
+                       f.validate();
+                       add_matrix(d, f.normal);
+                       for (double v : {f.offset, f.bottom_m, f.top_m, f.along_min, f.along_max}) d.number(v);
+                     }
+                     for (const auto& p : mesh.positions) {
+                       Eigen::Vector2d px;
+                       check(!(c.project(p.cast<double>(), px) && px.x() > 0.5 && px.x() < 63.5 && px.y() > 0.5 && px.y() < 47.5),
+                             "a hidden cell is in the frame");
+                       add_matrix(d, p.cast<double>());
+                     }
+                   }});
+  cases.push_back({"HiddenFacadeBeyondBounds", m,
+                   "hidden_facade_mesh for a facade 10^9 m long (a corrupt scene.json's)",
+                   "error naming the extent, before any cell is built", Expect::Error, {"extent"}, [](Digest&) {
+                     const render::PinholeCamera c = render::pinhole_with_fov(64, 48, 60);
+                     HiddenFacade f;
+                     f.normal = Eigen::Vector3d::UnitX();
+                     f.top_m = 10;
+                     f.along_min = f.seen_min = -1e9;
+                     f.along_max = f.seen_max = 1e9;
+                     hidden_facade_mesh({f}, cv::Mat(48, 64, CV_32F, cv::Scalar(10.f)), c);
                    }});
 }
 

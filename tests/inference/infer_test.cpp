@@ -82,6 +82,13 @@ TEST(InferScene, FloorDepthFollowsFromCameraHeight) {
 TEST(SceneModelFolder, RoundTripsEverything) {
   SceneModel s = infer_scene(simple_room(96, 72));
   s.source_photo = "room.png";
+  HiddenFacade facade;  // a room has none; a street's are kept as they are
+  facade.normal = -Eigen::Vector3d::UnitZ();
+  facade.offset = 7.25, facade.bottom_m = -0.1, facade.top_m = 9.5;
+  facade.along_min = -40, facade.seen_min = -3.5, facade.seen_max = 12.25, facade.along_max = 40;
+  facade.albedo = {0.6f, 0.5f, 0.25f};
+  facade.pixels = 321;
+  s.hidden_facades = {facade};
   const std::string dir = ::testing::TempDir() + "/scene_roundtrip";
   std::filesystem::remove_all(dir);
   save_scene(s, dir);
@@ -103,6 +110,15 @@ TEST(SceneModelFolder, RoundTripsEverything) {
   }
   EXPECT_EQ(t.reports.size(), s.reports.size());
   EXPECT_EQ(t.source_photo, "room.png");
+  ASSERT_EQ(t.hidden_facades.size(), 1u);
+  const HiddenFacade& f = t.hidden_facades[0];
+  EXPECT_TRUE(f.normal.isApprox(facade.normal));
+  for (auto [a, b] : {std::pair{f.offset, facade.offset}, {f.bottom_m, facade.bottom_m}, {f.top_m, facade.top_m},
+                      {f.along_min, facade.along_min}, {f.seen_min, facade.seen_min}, {f.seen_max, facade.seen_max},
+                      {f.along_max, facade.along_max}})
+    EXPECT_DOUBLE_EQ(a, b);
+  EXPECT_TRUE(f.albedo.isApprox(facade.albedo));
+  EXPECT_EQ(f.pixels, 321);
 }
 
 TEST(SceneModelFolder, MissingOrBrokenFolderIsAClearError) {

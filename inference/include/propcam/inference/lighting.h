@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "propcam/inference/albedo.h"
+#include "propcam/inference/hidden_facades.h"
 #include "propcam/inference/ibl_ranking.h"
 #include "propcam/inference/intensity_fit.h"
 #include "propcam/inference/light_classifier.h"
@@ -84,12 +85,21 @@ struct LightingOptions {
   // searched direction is always a candidate and the fit weighs it alone.
   bool sun_strength_from_shadows = true;
   SunFromShadowsOptions sun_search;
+  // Outdoors, the facades the depth map shows are continued out of the frame
+  // (hidden_facades.h) for the basis renders and, through the scene model,
+  // the composite: the buildings beside and behind the camera shade the near
+  // street. Off by default: with the sun the shading picks today, their
+  // shadows cost more than they give (`propcam bench lighting --sweeps
+  // facades`: streets composite 0.589 -> 0.692; inference/README.md).
+  bool hidden_facades = false;
+  HiddenFacadeOptions facades;
   uint64_t seed = 11;
 };
 
 struct LightingEstimate {
   std::vector<LightSource> lights;  // intensities fitted
   cv::Mat source_mask;              // CV_8U, 255 on detected source pixels
+  std::vector<HiddenFacade> hidden_facades;  // outdoors: the occluders the basis renders had (LightingOptions::hidden_facades)
   std::vector<StageReport> reports; // sources, environment, intensity fit
   // Camera response: encoded = linear^(1/gamma), fitted with the intensities
   // (SceneModel::gamma). Light intensities are in the units of the photo
@@ -104,6 +114,7 @@ struct LightingEstimate {
 struct GeometryCues {
   cv::Mat orientation;  // CV_8U SurfaceOrientation labels
   cv::Mat sky_mask;     // CV_8U, the sky detector's mask (indoors too)
+  cv::Mat normals;      // CV_32FC3 world-space normals at the depth's size (outdoors: hidden facades)
 };
 
 LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& depth, const cv::Mat& albedo,

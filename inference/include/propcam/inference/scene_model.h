@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "propcam/inference/hidden_facades.h"
 #include "propcam/render/camera.h"
 #include "propcam/render/lights.h"
 
@@ -63,6 +64,9 @@ struct SceneModel {
   cv::Mat normals;  // CV_32FC3 world unit normals
   std::vector<LightSource> lights;
   std::vector<SupportPlane> planes;
+  // Outdoors: the seen facades continued out of the frame, occluders for the
+  // lights (hidden_facades.h); the compositor adds them as the lighting did.
+  std::vector<HiddenFacade> hidden_facades;
   std::vector<StageReport> reports;
   std::string source_photo;
 
