@@ -173,8 +173,9 @@ render::Mesh hidden_facade_mesh(const std::vector<HiddenFacade>& facades, const 
     const double seen = std::isfinite(d) && d > 0 ? d : std::numeric_limits<double>::infinity();  // sky: seen through
     return camera.world_to_camera(p).z() < (1.0 - o.free_space_margin) * seen;
   };
+  const auto full = [&] { return mesh.triangles.size() >= 2 * kMaxHiddenCells; };
+  for (const HiddenFacade& f : facades) f.validate();
   for (const HiddenFacade& f : facades) {
-    f.validate();
     render::Material m;
     m.name = "hidden_facade";
     m.albedo = f.albedo;
@@ -189,8 +190,7 @@ render::Mesh hidden_facade_mesh(const std::vector<HiddenFacade>& facades, const 
       const double h0 = f.bottom_m + j * cell_up, h1 = h0 + cell_up;
       const Vector3d p00 = at(a0, h0), p10 = at(a1, h0), p11 = at(a1, h1), p01 = at(a0, h1);
       Eigen::Vector2d px;
-      if (mesh.triangles.size() >= 2 * kMaxHiddenCells) return;
-      if (in_view(p00, px) || in_view(p10, px) || in_view(p11, px) || in_view(p01, px) ||
+      if (full() || in_view(p00, px) || in_view(p10, px) || in_view(p11, px) || in_view(p01, px) ||
           in_view(0.25 * (p00 + p10 + p11 + p01), px))
         return;
       // Counter-clockwise seen from the side the facade faces.
@@ -205,12 +205,12 @@ render::Mesh hidden_facade_mesh(const std::vector<HiddenFacade>& facades, const 
     // row below it stopped: a facade stands on the ground.
     const int seen_columns = std::max(1, static_cast<int>(std::ceil((f.seen_max - f.seen_min) / o.cell_m)));
     const double seen_cell = (f.seen_max - f.seen_min) / seen_columns;
-    for (int i = 0; i < seen_columns; ++i)
+    for (int i = 0; i < seen_columns && !full(); ++i)
       for (int j = 0; j < rows; ++j) add_cell(f.seen_min + i * seen_cell, f.seen_min + (i + 1) * seen_cell, j);
     for (const double direction : {1.0, -1.0}) {
       std::vector<bool> alive(rows, true);
       const double start = direction > 0 ? f.seen_max : f.seen_min, end = direction > 0 ? f.along_max : f.along_min;
-      for (double a = start; direction * (end - a) > 0; a += direction * o.cell_m) {
+      for (double a = start; direction * (end - a) > 0 && !full(); a += direction * o.cell_m) {
         bool any = false;
         for (int j = 0; j < rows; ++j) {
           alive[j] = alive[j] && (j == 0 || alive[j - 1]) &&
