@@ -4,15 +4,32 @@
 # error fails its test, and leaks are reported except the third-party ones
 # named in tests/sanitize/lsan.supp. Tests labelled slow_under_asan (over
 # about a minute under ASan, set in tests/CMakeLists.txt) and the soak and
-# qemu suites are left out; the release suite runs them. PROPCAM_SETUP_DONE=1
-# skips setup.sh, for a caller that has run it (e.g. scripts/test.sh).
+# qemu suites are left out; the release suite runs them.
+#
+#   bash scripts/sanitize.sh            every program (~20 min build + ~14 min run on 2 cores)
+#   bash scripts/sanitize.sh --modules  the library modules' own programs only (label
+#                                       `module`: capture, render, inference, ui_fb),
+#                                       what CI runs (scripts/test.sh)
+#
+# PROPCAM_SETUP_DONE=1 skips setup.sh, for a caller that has run it.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+scope=all
+case "${1:-}" in
+  "") ;;
+  --modules) scope=modules ;;
+  *) echo "usage: bash scripts/sanitize.sh [--modules]" >&2; exit 2 ;;
+esac
 [ -n "${PROPCAM_SETUP_DONE:-}" ] || bash scripts/setup.sh
 root="$(pwd)"
 export ASAN_OPTIONS="detect_leaks=1"
 export LSAN_OPTIONS="suppressions=${root}/tests/sanitize/lsan.supp:print_suppressions=0"
 export UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1"
 cmake --preset asan
-cmake --build --preset asan -j "$(nproc)"
-ctest --preset asan -j "$(nproc)" -LE "slow_under_asan|soak|qemu"
+if [ "$scope" = modules ]; then
+  cmake --build --preset asan -j "$(nproc)" --target module_tests
+  ctest --preset asan -j "$(nproc)" -L module -LE "slow_under_asan|soak|qemu"
+else
+  cmake --build --preset asan -j "$(nproc)"
+  ctest --preset asan -j "$(nproc)" -LE "slow_under_asan|soak|qemu"
+fi
