@@ -7,7 +7,7 @@
 # qemu suites are left out; the release suite runs them.
 #
 #   bash scripts/sanitize.sh            every program (~20 min build + ~14 min run on 2 cores)
-#   bash scripts/sanitize.sh --modules  the library modules' own programs only (label
+#   bash scripts/sanitize.sh --modules  the library modules' own programs only (~14 min; label
 #                                       `module`: capture, render, inference, ui_fb),
 #                                       what CI runs (scripts/test.sh)
 #
