@@ -27,6 +27,33 @@ inline double percentile(std::vector<double> v, double p) {
   return v[k];
 }
 
+// Peaks of the histogram of `values` over [lo, hi) in bins of `bin`, smoothed
+// over `thickness` (a plane's), strongest first: each found peak clears
+// `suppress_halves` half-thicknesses around it before the next is sought.
+// At most `max_peaks` rounds; a round whose peak holds fewer than
+// `min_count` smoothed values ends the search. Values outside the range
+// count in the end bins.
+inline std::vector<double> histogram_peaks(const std::vector<double>& values, double lo, double hi, double bin,
+                                           double thickness, double min_count, int max_peaks, int suppress_halves) {
+  const int bins = static_cast<int>(std::ceil((hi - lo) / bin));
+  std::vector<double> hist(bins, 0.0);
+  for (double v : values) hist[std::clamp(static_cast<int>((v - lo) / bin), 0, bins - 1)] += 1;
+  const int half = std::max(1, static_cast<int>(std::lround(0.5 * thickness / bin)));
+  std::vector<double> smooth(bins, 0.0);
+  for (int b = 0; b < bins; ++b)
+    for (int k = -half; k <= half; ++k)
+      if (b + k >= 0 && b + k < bins) smooth[b] += hist[b + k];
+  std::vector<double> peaks;
+  for (int round = 0; round < max_peaks; ++round) {
+    const int best = static_cast<int>(std::max_element(smooth.begin(), smooth.end()) - smooth.begin());
+    if (smooth[best] < min_count) break;
+    for (int b = std::max(0, best - suppress_halves * half); b <= std::min(bins - 1, best + suppress_halves * half); ++b)
+      smooth[b] = 0;
+    peaks.push_back(lo + (best + 0.5) * bin);
+  }
+  return peaks;
+}
+
 // Calls visit(x, y, depth) for each surface pixel of a grid `step` pixels
 // apart; returns how many grid pixels there were (surface or not).
 template <class Visit>

@@ -85,8 +85,6 @@ std::vector<HiddenFacade> find_hidden_facades(const cv::Mat& depth, const cv::Ma
   std::vector<HiddenFacade> out;
   if (sampled == 0 || o.max_facades == 0) return out;
   const double min_count = std::max(8.0, o.min_area_fraction * sampled);
-  const int bins = static_cast<int>(std::ceil(2 * kMaxOffsetM / o.bin_m));
-  const int half = std::max(1, static_cast<int>(std::lround(0.5 * o.thickness_m / o.bin_m)));
   struct Candidate {
     int axis;
     double offset;
@@ -95,21 +93,12 @@ std::vector<HiddenFacade> find_hidden_facades(const cv::Mat& depth, const cv::Ma
   std::vector<Candidate> candidates;
   for (int axis = 0; axis < 4; ++axis) {
     // Offsets of the plane normal . x + offset = 0 through each point.
-    std::vector<double> hist(bins, 0.0);
+    std::vector<double> offsets;
     for (const auto& s : samples)
-      if (s.axis == axis) {
-        const double offset = -kAxes[axis].dot(s.point);
-        hist[std::clamp(static_cast<int>((offset + kMaxOffsetM) / o.bin_m), 0, bins - 1)] += 1;
-      }
-    std::vector<double> smooth(bins, 0.0);
-    for (int b = 0; b < bins; ++b)
-      for (int k = -half; k <= half; ++k)
-        if (b + k >= 0 && b + k < bins) smooth[b] += hist[b + k];
-    for (int round = 0; round < o.max_facades; ++round) {
-      const int best = static_cast<int>(std::max_element(smooth.begin(), smooth.end()) - smooth.begin());
-      if (smooth[best] < min_count) break;
-      for (int b = std::max(0, best - 2 * half); b <= std::min(bins - 1, best + 2 * half); ++b) smooth[b] = 0;
-      Candidate c{axis, -kMaxOffsetM + (best + 0.5) * o.bin_m, {}};
+      if (s.axis == axis) offsets.push_back(-kAxes[axis].dot(s.point));
+    for (const double offset : depth_samples::histogram_peaks(offsets, -kMaxOffsetM, kMaxOffsetM, o.bin_m, o.thickness_m,
+                                                               min_count, o.max_facades, 2)) {
+      Candidate c{axis, offset, {}};
       for (size_t i = 0; i < samples.size(); ++i)
         if (samples[i].axis == axis && std::abs(-kAxes[axis].dot(samples[i].point) - c.offset) <= o.thickness_m)
           c.members.push_back(i);

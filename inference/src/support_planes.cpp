@@ -61,22 +61,13 @@ std::vector<SupportPlane> find_support_planes(const cv::Mat& depth, const cv::Ma
     if (!p.allFinite() || p.y() >= camera.center_world.y() || p.y() < kMinHeightM || p.y() > kMaxHeightM) return;
     up.push_back({p});
   });
-  const int bins = static_cast<int>(std::ceil((kMaxHeightM - kMinHeightM) / o.bin_m));
-  std::vector<double> hist(bins, 0.0);
-  for (const auto& s : up) hist[std::clamp(static_cast<int>((s.p.y() - kMinHeightM) / o.bin_m), 0, bins - 1)] += 1;
-  // Peaks of the histogram smoothed over the plane thickness, strongest first.
-  const int half = std::max(1, static_cast<int>(std::lround(0.5 * o.thickness_m / o.bin_m)));
-  std::vector<double> smooth(bins, 0.0);
-  for (int b = 0; b < bins; ++b)
-    for (int k = -half; k <= half; ++k)
-      if (b + k >= 0 && b + k < bins) smooth[b] += hist[b + k];
   const double min_count = std::max(3.0, o.min_area_fraction * sampled);
+  std::vector<double> heights;
+  for (const auto& s : up) heights.push_back(s.p.y());
   std::vector<SupportPlane> planes;
   std::vector<bool> taken(up.size(), false);
-  for (int round = 0; round < o.max_planes; ++round) {
-    const int best = static_cast<int>(std::max_element(smooth.begin(), smooth.end()) - smooth.begin());
-    if (smooth[best] < min_count) break;
-    const double centre = kMinHeightM + (best + 0.5) * o.bin_m;
+  for (const double centre : depth_samples::histogram_peaks(heights, kMinHeightM, kMaxHeightM, o.bin_m, o.thickness_m,
+                                                             min_count, o.max_planes, 3)) {
     std::vector<double> ys, xs, zs;
     for (size_t i = 0; i < up.size(); ++i)
       if (!taken[i] && std::abs(up[i].p.y() - centre) <= o.thickness_m) {
@@ -85,7 +76,6 @@ std::vector<SupportPlane> find_support_planes(const cv::Mat& depth, const cv::Ma
         xs.push_back(up[i].p.x());
         zs.push_back(up[i].p.z());
       }
-    for (int b = std::max(0, best - 3 * half); b <= std::min(bins - 1, best + 3 * half); ++b) smooth[b] = 0;
     if (ys.size() < min_count) continue;
     const double h = percentile(ys, 0.5);
     SupportPlane p;
