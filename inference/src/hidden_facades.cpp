@@ -41,20 +41,6 @@ struct VerticalSample {
 
 }  // namespace
 
-void HiddenFacade::validate() const {
-  constexpr double kUnitTolerance = 1e-3;
-  if (!normal.allFinite() || !albedo.allFinite() ||
-      !std::isfinite(offset + bottom_m + top_m + seen_min + seen_max + along_min + along_max))
-    throw std::runtime_error("hidden facade: non-finite number");
-  if (std::abs(normal.norm() - 1.0) > kUnitTolerance || std::abs(normal.y()) > kUnitTolerance)
-    throw std::runtime_error("hidden facade: the normal must be horizontal and unit");
-  if (!(top_m > bottom_m) || top_m - bottom_m > kMaxFacadeHeightM || std::abs(offset) > kMaxFacadeSpanM)
-    throw std::runtime_error("hidden facade: bad height or offset");
-  if (!(along_min <= seen_min && seen_min <= seen_max && seen_max <= along_max) || along_max - along_min > kMaxFacadeSpanM)
-    throw std::runtime_error("hidden facade: bad extent along it");
-  if (pixels < 0) throw std::runtime_error("hidden facade: negative pixel count");
-}
-
 std::vector<HiddenFacade> find_hidden_facades(const cv::Mat& depth, const cv::Mat& normals, const cv::Mat& albedo,
                                               const render::PinholeCamera& camera, const HiddenFacadeOptions& o) {
   if (depth.type() != CV_32F || normals.type() != CV_32FC3 || depth.size() != normals.size() ||
