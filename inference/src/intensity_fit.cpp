@@ -30,49 +30,62 @@ constexpr int kInitialSweeps = 50;
 // The response's search ends when its bracket is this narrow.
 constexpr double kGammaTolerance = 1e-3;
 
-// One pixel's residual I_i - (sum_k w_k b_ik)^gamma, analytic derivatives.
-// Parameter blocks: the K weights (one each, so each has its own bound or
-// can be held), then gamma.
+// One pixel's residual I_i - (c_i + sum_j w_j b_ij)^gamma over the free
+// weights w (one parameter block), analytic derivatives. The response gamma
+// is fixed within a solve (it is profiled outside Ceres) and c_i is what the
+// held weights add, so each pixel has one parameter block: Ceres' per-block
+// overhead, not the arithmetic, was the fit's cost with one block per weight.
 class PixelResidual : public ceres::CostFunction {
  public:
-  PixelResidual(const double* basis_row, int sources, double target)
-      : basis_row_(basis_row), sources_(sources), target_(target) {
+  PixelResidual(const double* basis_row, const int* free_index, int free_count, double held_sum, double gamma,
+                double target)
+      : basis_row_(basis_row), free_index_(free_index), free_count_(free_count), held_sum_(held_sum), gamma_(gamma),
+        target_(target) {
     set_num_residuals(1);
-    for (int k = 0; k <= sources; ++k) mutable_parameter_block_sizes()->push_back(1);
+    mutable_parameter_block_sizes()->push_back(free_count);
   }
 
   bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
-    double sum = 0.0;
-    for (int k = 0; k < sources_; ++k) sum += parameters[k][0] * basis_row_[k];
-    const double gamma = parameters[sources_][0];
+    const double* w = parameters[0];
+    double sum = held_sum_;
+    for (int j = 0; j < free_count_; ++j) sum += w[j] * basis_row_[free_index_[j]];
     const bool floored = !(sum > kMinRenderedValue);
     const double s = floored ? kMinRenderedValue : sum;
-    const double encoded = std::pow(s, gamma);
+    const double encoded = std::pow(s, gamma_);
     residuals[0] = target_ - encoded;
-    if (jacobians) {
-      const double slope = floored ? 0.0 : gamma * encoded / s;  // d(s^gamma)/ds
-      for (int k = 0; k < sources_; ++k)
-        if (jacobians[k]) jacobians[k][0] = -slope * basis_row_[k];
-      if (jacobians[sources_]) jacobians[sources_][0] = -encoded * std::log(s);
+    if (jacobians && jacobians[0]) {
+      const double slope = floored ? 0.0 : gamma_ * encoded / s;  // d(s^gamma)/ds
+      for (int j = 0; j < free_count_; ++j) jacobians[0][j] = -slope * basis_row_[free_index_[j]];
     }
     return std::isfinite(residuals[0]);
   }
 
  private:
   const double* basis_row_;
-  int sources_;
-  double target_;
+  const int* free_index_;
+  int free_count_;
+  double held_sum_, gamma_, target_;
 };
 
-// A scalar parameter minus a constant: for |w_k| and |gamma - gamma0|.
-struct OffsetResidual {
-  explicit OffsetResidual(double offset) : offset(offset) {}
-  template <typename T>
-  bool operator()(const T* const x, T* r) const {
-    r[0] = x[0] - T(offset);
-    return true;
+// One free weight, w_j, for its prior |w_j|.
+class WeightResidual : public ceres::CostFunction {
+ public:
+  WeightResidual(int index, int free_count) : index_(index) {
+    set_num_residuals(1);
+    mutable_parameter_block_sizes()->push_back(free_count);
   }
-  double offset;
+
+  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
+    residuals[0] = parameters[0][index_];
+    if (jacobians && jacobians[0]) {
+      std::fill(jacobians[0], jacobians[0] + parameter_block_sizes()[0], 0.0);
+      jacobians[0][index_] = 1.0;
+    }
+    return std::isfinite(residuals[0]);
+  }
+
+ private:
+  int index_;
 };
 
 }  // namespace
@@ -188,41 +201,53 @@ IntensityFitResult fit_intensities(const IntensityFitProblem& p, const Intensity
   // the objective (data, priors and the response's prior), or +inf when the
   // solve is unusable (w is then left as it was).
   const auto solve_weights = [&](const std::vector<bool>& hold, double g) {
-    std::vector<double> trial = w;
+    std::vector<int> free_index;
+    for (int k = 0; k < sources; ++k)
+      if (!hold[k]) free_index.push_back(k);
+    const int free_n = static_cast<int>(free_index.size());
+    // The response's prior, soft |gamma - gamma0| as Ceres would weigh it
+    // (lambda a^2 (sqrt(1 + r^2/a^2) - 1)): constant within the solve, it
+    // ranks the responses tried.
+    const double gamma_weight = o.lambda_gamma + o.lambda_gamma_per_pixel * pixels;
+    const double gamma_cost = gamma_weight * a * (std::hypot(a, g - o.gamma0) - a);
+    std::vector<double> held_sum(pixels, 0.0);
+    for (size_t i = 0; i < pixels; ++i)
+      for (int k = 0; k < sources; ++k)
+        if (hold[k]) held_sum[i] += w[k] * rows[i * sources + k];
+    if (free_n == 0) {
+      // Nothing to solve: the objective at the held weights.
+      double cost = gamma_cost;
+      for (size_t i = 0; i < pixels; ++i) {
+        const double r = target[i] - std::pow(std::max(held_sum[i], kMinRenderedValue), g);
+        cost += a * (std::hypot(a, r) - a);
+      }
+      ++out.solves;
+      out.converged = true;
+      out.termination = "every weight is held";
+      return std::isfinite(cost) ? cost / a : std::numeric_limits<double>::infinity();
+    }
+    std::vector<double> trial(free_n);
+    for (int j = 0; j < free_n; ++j) trial[j] = w[free_index[j]];
     ceres::Problem::Options po;
     po.loss_function_ownership = ceres::TAKE_OWNERSHIP;
     ceres::Problem problem(po);
-    std::vector<double*> blocks;
-    for (int k = 0; k < sources; ++k) blocks.push_back(&trial[k]);
-    double gamma_block = g;
-    blocks.push_back(&gamma_block);
     // Q: per-pixel soft |.|, summed over pixels as in the paper.
     for (size_t i = 0; i < pixels; ++i)
-      problem.AddResidualBlock(new PixelResidual(&rows[i * sources], sources, target[i]), new ceres::SoftLOneLoss(a),
-                               blocks);
+      problem.AddResidualBlock(new PixelResidual(&rows[i * sources], free_index.data(), free_n, held_sum[i], g, target[i]),
+                               new ceres::SoftLOneLoss(a), trial.data());
     // P: sparsity plus the basis-noise prior, |w_k| (1 + N_k) for w_k >= 0.
-    for (int k = 0; k < sources; ++k) {
-      if (hold[k]) continue;
+    for (int j = 0; j < free_n; ++j) {
+      const int k = free_index[j];
       const double noise = p.noise.empty() ? 0.0 : std::max(0.0, p.noise[k]);
-      problem.AddResidualBlock(new ceres::AutoDiffCostFunction<OffsetResidual, 1, 1>(new OffsetResidual(0.0)),
+      problem.AddResidualBlock(new WeightResidual(j, free_n),
                                new ceres::ScaledLoss(new ceres::SoftLOneLoss(a), o.lambda_prior * (1.0 + noise),
                                                      ceres::TAKE_OWNERSHIP),
-                               &trial[k]);
+                               trial.data());
     }
-    // The response's prior (constant here: it ranks the responses tried).
-    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<OffsetResidual, 1, 1>(new OffsetResidual(o.gamma0)),
-                             new ceres::ScaledLoss(new ceres::SoftLOneLoss(a),
-                                                   o.lambda_gamma + o.lambda_gamma_per_pixel * pixels,
-                                                   ceres::TAKE_OWNERSHIP),
-                             &gamma_block);
-    problem.SetParameterBlockConstant(&gamma_block);
-    for (int k = 0; k < sources; ++k) {
-      if (hold[k]) {
-        problem.SetParameterBlockConstant(&trial[k]);
-        continue;
-      }
-      problem.SetParameterLowerBound(&trial[k], 0, lo[k]);
-      if (std::isfinite(hi[k])) problem.SetParameterUpperBound(&trial[k], 0, hi[k]);
+    for (int j = 0; j < free_n; ++j) {
+      const int k = free_index[j];
+      problem.SetParameterLowerBound(trial.data(), j, lo[k]);
+      if (std::isfinite(hi[k])) problem.SetParameterUpperBound(trial.data(), j, hi[k]);
     }
     ceres::Solver::Options so;
     so.max_num_iterations = std::max(1, o.max_iterations);
@@ -241,8 +266,8 @@ IntensityFitResult fit_intensities(const IntensityFitProblem& p, const Intensity
     const bool usable = summary.IsSolutionUsable() && std::isfinite(summary.final_cost) &&
                         std::all_of(trial.begin(), trial.end(), [](double v) { return std::isfinite(v); });
     if (!usable) return std::numeric_limits<double>::infinity();
-    w = trial;
-    return summary.final_cost / a;  // in the objective's units
+    for (int j = 0; j < free_n; ++j) w[free_index[j]] = trial[j];
+    return (summary.final_cost + gamma_cost) / a;  // in the objective's units
   };
 
   // The response: weights and response trade off along a shallow valley (a
