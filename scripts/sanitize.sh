@@ -3,13 +3,13 @@
 # RelWithDebInfo) and runs the test suite under it: any UB report or ASan
 # error fails its test, and leaks are reported except the third-party ones
 # named in tests/sanitize/lsan.supp. Tests labelled slow_under_asan (over
-# about a minute under ASan, set in tests/CMakeLists.txt) and the soak and
-# qemu suites are left out; the release suite runs them.
+# about 20 s under ASan, set in tests/CMakeLists.txt) and the soak and qemu
+# suites are left out; the release suite runs them.
 #
-#   bash scripts/sanitize.sh            every program (~20 min build + ~14 min run on 2 cores)
-#   bash scripts/sanitize.sh --modules  the library modules' own programs only (~14 min; label
-#                                       `module`: capture, render, inference, ui_fb),
-#                                       what CI runs (scripts/test.sh)
+#   bash scripts/sanitize.sh            every program, what CI runs (scripts/test.sh)
+#   bash scripts/sanitize.sh --modules  the library modules' own programs only (label
+#                                       `module`: capture, render, inference, ui_fb), a
+#                                       quicker check while working on them
 #
 # PROPCAM_SETUP_DONE=1 skips setup.sh, for a caller that has run it.
 set -euo pipefail
