@@ -42,8 +42,6 @@ constexpr double kNoiseBlurSigmaPx = 1.5;
 constexpr double kPropYawDeg = 30.0;
 // Resolution of the baseline's environment (the photo wrapped onto a sphere).
 constexpr int kBaselineEnvironmentWidth = 128;
-// Area lights farther than this from the camera are distant (suns, sky patches).
-constexpr double kFarLightM = 100.0;
 
 double luminance(const Vector3f& c) { return 0.2126 * c.x() + 0.7152 * c.y() + 0.0722 * c.z(); }
 
@@ -177,14 +175,14 @@ void score_scene(const Shot& s, const inference::SceneModel& est, const render::
   double brightest = 0;
   Vector3d sun = Vector3d::Zero();
   for (const auto& l : est.lights) {
-    Vector3d d;
-    if (l.type == inference::LightSource::Type::Sun) d = l.direction;
-    else if (l.type == inference::LightSource::Type::Area && (l.position - centre).norm() > kFarLightM)
-      d = l.position - centre;
-    else continue;
+    const std::optional<Vector3d> d = inference::distant_light_direction(l, centre);
+    if (!d) continue;
+    // A far quad's irradiance: radiance times the solid angle it subtends.
     const double power = luminance(l.intensity.cast<float>()) *
-                         (l.type == inference::LightSource::Type::Area ? l.edge_u.cross(l.edge_v).norm() / d.squaredNorm() : 1.0);
-    if (power > brightest) brightest = power, sun = d.normalized();
+                         (l.type == inference::LightSource::Type::Area
+                              ? l.edge_u.cross(l.edge_v).norm() / (l.position - centre).squaredNorm()
+                              : 1.0);
+    if (power > brightest) brightest = power, sun = *d;
   }
   e.true_sun_elevation_deg = std::asin(std::clamp(true_sun.y(), -1.0, 1.0)) * kRadToDeg;
   if (brightest <= 0) return;

@@ -388,7 +388,7 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   std::vector<Vector3d> ranked_sun_directions;
   if (search_sun) {
     for (const auto& l : unseen)
-      if ((l.position - camera.center_world).norm() > kSunDistanceM / 2) ranked_sun_directions.push_back((l.position - camera.center_world).normalized());
+      if (const auto d = distant_light_direction(l, camera.center_world)) ranked_sun_directions.push_back(*d);
     unseen.clear();
   } else if (options.keep_hypotheses || unseen.empty()) {
     for (auto& candidate : out_of_view_candidates(camera, planes, indoor, options)) unseen.push_back(candidate);

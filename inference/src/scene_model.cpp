@@ -73,6 +73,16 @@ const char* to_string(LightSource::Type type) {
   return "area";
 }
 
+std::optional<Eigen::Vector3d> distant_light_direction(const LightSource& light, const Eigen::Vector3d& from) {
+  if (light.type == LightSource::Type::Sun)
+    return light.direction.allFinite() && light.direction.norm() > 0 ? std::optional(light.direction.normalized())
+                                                                       : std::nullopt;
+  if (light.type != LightSource::Type::Area) return std::nullopt;
+  const Eigen::Vector3d to = light.position - from;
+  if (!to.allFinite() || !(to.norm() > kDistantLightM)) return std::nullopt;
+  return to.normalized();
+}
+
 json to_json(const StageReport& r) {
   json j = {{"stage", r.stage}, {"usable", r.usable}, {"why", r.why}, {"iterations", r.iterations},
             {"seconds", r.seconds}};

@@ -84,7 +84,9 @@ TEST(RealPhotos, StreetCompositeCastsASunShadowOnTheGround) {
   const inference::SceneModel scene = inference::infer_scene(photo);
   EXPECT_FALSE(scene.indoor);
   bool sun = false;
-  for (const auto& l : scene.lights) sun = sun || (l.type == inference::LightSource::Type::Area && l.position.norm() > 100);
+  for (const auto& l : scene.lights)
+    sun = sun || (l.type == inference::LightSource::Type::Area &&
+                  inference::distant_light_direction(l, scene.camera().center_world).has_value());
   EXPECT_TRUE(sun) << "outdoors, a directional source explains the sunlit façade";
   render::RenderSettings s;
   s.samples_per_pixel = 8;

@@ -112,7 +112,8 @@ TEST(StreetLighting, TheSunSearchedFromShadowsIsOneSunWeighedWithTheSky) {
       EXPECT_NEAR(l.direction.norm(), 1.0, 1e-9);
       EXPECT_GT(l.intensity.minCoeff(), 0.0);
     }
-    if (l.type == inference::LightSource::Type::Area && (l.position - est.camera().center_world).norm() > 100) ++far_quads;
+    if (l.type == inference::LightSource::Type::Area && inference::distant_light_direction(l, est.camera().center_world))
+      ++far_quads;
   }
   EXPECT_EQ(suns, search.at("found").get<bool>() ? 1 : 0);
   EXPECT_EQ(far_quads, 0);  // no hypotheses beside the searched sun
@@ -162,8 +163,11 @@ TEST(StreetLighting, HiddenFacadesReachTheSceneModelAndTheComposite) {
   o.lighting.hidden_facades = true;
   inference::SceneModel est = inference::complete_scene(shot.photo_linear, g, o);
   ASSERT_FALSE(est.hidden_facades.empty());
-  for (const auto& r : est.reports)
-    if (r.stage == "light_intensities") EXPECT_EQ(r.details.at("hidden_facades").get<size_t>(), est.hidden_facades.size());
+  for (const auto& r : est.reports) {
+    if (r.stage == "light_intensities") {
+      EXPECT_EQ(r.details.at("hidden_facades").get<size_t>(), est.hidden_facades.size());
+    }
+  }
   for (const auto& f : est.hidden_facades) {
     EXPECT_NO_THROW(f.validate());
     EXPECT_GE(f.top_m - f.bottom_m, 2.0);

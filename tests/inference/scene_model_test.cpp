@@ -1,5 +1,7 @@
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include "propcam/inference/scene_model.h"
 
 namespace propcam::inference {
@@ -31,6 +33,32 @@ TEST(SceneModel, LightRigHoldsEveryLightType) {
   // Unit intensity (basis renders): every light at one.
   const render::LightRig unit = make_light_rig(lights, true);
   EXPECT_FLOAT_EQ(unit.suns[0].irradiance.y(), 1.0f);
+}
+
+TEST(SceneModel, DistantLightsGiveADirectionAndRoomLightsNone) {
+  const Eigen::Vector3d camera(1, 1.5, -2);
+  LightSource sun;
+  sun.type = LightSource::Type::Sun;
+  sun.direction = Eigen::Vector3d(0, 2, 0);
+  ASSERT_TRUE(distant_light_direction(sun, camera));
+  EXPECT_TRUE(distant_light_direction(sun, camera)->isApprox(Eigen::Vector3d::UnitY()));
+  sun.direction = Eigen::Vector3d::Zero();
+  EXPECT_FALSE(distant_light_direction(sun, camera)) << "a sun with no direction";
+
+  LightSource sky_patch;  // a sky patch 1 km out, as the lighting places them
+  sky_patch.type = LightSource::Type::Area;
+  sky_patch.position = camera + 1000.0 * Eigen::Vector3d(0.6, 0.8, 0);
+  ASSERT_TRUE(distant_light_direction(sky_patch, camera));
+  EXPECT_TRUE(distant_light_direction(sky_patch, camera)->isApprox(Eigen::Vector3d(0.6, 0.8, 0)));
+
+  LightSource lamp = sky_patch;  // a ceiling panel of the room
+  lamp.position = camera + Eigen::Vector3d(0, 1.2, 2);
+  EXPECT_FALSE(distant_light_direction(lamp, camera));
+  lamp.position = Eigen::Vector3d::Constant(std::nan(""));
+  EXPECT_FALSE(distant_light_direction(lamp, camera)) << "a non-finite position is no direction";
+  LightSource point = sky_patch;
+  point.type = LightSource::Type::Point;
+  EXPECT_FALSE(distant_light_direction(point, camera)) << "only suns and area lights stand for distant light";
 }
 
 }  // namespace

@@ -5,6 +5,7 @@
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -41,6 +42,16 @@ struct LightSource {
 };
 
 const char* to_string(LightSource::Type type);
+
+// Area lights at least this far away stand for distant light (the lighting
+// places suns and sky patches as quads 1 km out; room lights lie within
+// metres): they give a direction, not a place.
+constexpr double kDistantLightM = 100.0;
+
+// The unit direction from `from` toward a distant light: a sun's, or a far
+// area light's centre. None for the lights in the scene (and for a sun with
+// no direction).
+std::optional<Eigen::Vector3d> distant_light_direction(const LightSource& light, const Eigen::Vector3d& from);
 
 struct SupportPlane {
   std::string name;       // floor, wall_front, table_1, ...
