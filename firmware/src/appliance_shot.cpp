@@ -5,6 +5,7 @@
 #include <cmath>
 #include <fstream>
 #include <set>
+#include <unistd.h>
 
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -65,11 +66,15 @@ cv::Mat load_rgb8(const fs::path& path) {
   return rgb;
 }
 
+// A cache file: written atomically under a per-process temporary name (two
+// appliances sharing a data folder may render the same thumbnail at once),
+// and a failed write only costs a re-render next time.
 void save_rgb8(const fs::path& path, const cv::Mat& rgb) {
-  cv::Mat bgr;
-  cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
-  const fs::path tmp = path.string() + ".tmp.png";
-  if (cv::imwrite(tmp.string(), bgr)) fs::rename(tmp, path);
+  try {
+    capture::write_image(path.string(), rgb);
+  } catch (const std::exception& e) {
+    spdlog::warn("thumbnail cache: {}", e.what());
+  }
 }
 
 cv::Mat thumbnail_for(const std::string& key, const fs::path& cache, int size,
@@ -360,7 +365,7 @@ void ThroughputModel::record(double pixel_samples, double seconds) {
   if (file_.empty()) return;
   std::error_code ec;
   fs::create_directories(file_.parent_path(), ec);
-  const fs::path tmp = file_.string() + ".tmp";
+  const fs::path tmp = file_.string() + ".tmp-" + std::to_string(::getpid());
   {
     std::ofstream out(tmp);
     out << nlohmann::json{{"pixel_samples_per_second", rate_}}.dump(2) << "\n";
