@@ -12,6 +12,7 @@
 #include "propcam/inference/hidden_facades.h"
 #include "propcam/inference/intensity_fit.h"
 #include "propcam/inference/light_classifier.h"
+#include "propcam/inference/sun_choice.h"
 #include "load_once.h"
 #include "propcam/render/depth_mesh.h"
 #include "propcam/render/path_tracer.h"
@@ -117,28 +118,6 @@ Vector3d unit_luminance_colour(const Vector3d& rgb) {
   const double lum = 0.2126 * rgb.x() + 0.7152 * rgb.y() + 0.0722 * rgb.z();
   if (!(lum > 0)) return Vector3d::Ones();
   return (rgb / lum).cwiseMax(kMinSourceChannel);
-}
-
-// How well a light's shading agrees with where the photo is bright: the
-// correlation, over the fit's pixels, between the photo's log luminance and
-// the light's shading (its basis render over the albedo it was rendered
-// with). A sun from the wrong side lights the facades that are dark in the
-// photo and shades the bright ones. The albedo cancels only in part (it is
-// the photo over its blurred luminance), which is why this is used to rank
-// suns, not to weigh them. 0 when either side does not vary.
-double shading_agreement(const cv::Mat& basis, const cv::Mat& albedo, const cv::Mat& photo,
-                         const std::vector<cv::Point>& pixels) {
-  constexpr double kMinAlbedoForShading = 0.02, kMinLuminance = 1e-4;
-  const auto luminance = [](const cv::Vec3f& v) { return 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2]; };
-  double n = 0, sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
-  for (const cv::Point& p : pixels) {
-    const double shading = luminance(basis.at<cv::Vec3f>(p)) / std::max(kMinAlbedoForShading, luminance(albedo.at<cv::Vec3f>(p)));
-    const double bright = std::log(std::max(kMinLuminance, luminance(photo.at<cv::Vec3f>(p))));
-    n += 1, sx += shading, sy += bright, sxx += shading * shading, syy += bright * bright, sxy += shading * bright;
-  }
-  if (n < 2) return 0.0;
-  const double vx = sxx - sx * sx / n, vy = syy - sy * sy / n, cxy = sxy - sx * sy / n;
-  return vx > kMinBasisEnergy && vy > kMinBasisEnergy ? cxy / std::sqrt(vx * vy) : 0.0;
 }
 
 }  // namespace
@@ -542,20 +521,20 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   for (const auto& p : fit_pixels)
     problem.target.push_back(capture::linear_to_srgb(static_cast<float>(photo_value(p, 3))));
   // Outdoors there is one sun, and the ground alone cannot tell its
-  // azimuth: the fit weighs only the sun whose shading agrees best with the
-  // photo (shading_agreement).
+  // azimuth: the fit weighs only the sun the photo calls for (sun_choice.h:
+  // the one that lights what the measured sky alone cannot make so bright,
+  // and whose shading agrees best with the photo).
   const int suns_begin = static_cast<int>(visible_sources), suns_end = k - 1;
-  nlohmann::json sun_agreement = nlohmann::json::array();
+  nlohmann::json sun_choice_report;
   if (!indoor && options.sun_from_shading && suns_end - suns_begin > 1) {
-    int best = -1;
-    double best_agreement = -std::numeric_limits<double>::infinity();
-    for (int i = suns_begin; i < suns_end; ++i) {
-      const double a = shading_agreement(basis[i], fit_albedo, fit_photo, used);
-      sun_agreement.push_back(a);
-      if (a > best_agreement) best_agreement = a, best = i;
-    }
+    const std::vector<cv::Mat> suns(basis.begin() + suns_begin, basis.begin() + suns_end);
+    const SunChoice choice = choose_sun(suns, basis[k - 1], fit_albedo, fit_photo, used, options.sun_choice);
+    sun_choice_report = {{"must_be_sunlit_pixels", choice.must_be_sunlit},
+                         {"sunlit_share", choice.sunlit_share},
+                         {"agreement", choice.agreement},
+                         {"chosen", choice.chosen}};
     for (int i = suns_begin; i < suns_end; ++i)
-      if (i != best) upper[i] = 0.0;
+      if (i != suns_begin + choice.chosen) upper[i] = 0.0;
   }
   IntensityFitOptions fit_options = options.fit;
   fit_options.max_seconds = std::max(0.05, options.fit.max_seconds);
@@ -690,7 +669,7 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
                  {"albedo_scale", out.albedo_scale},
                  {"fit_error_encoded", chosen.data_error},
                  {"basis_render_seconds", basis_seconds}, {"fit_seconds", seconds_since(fit_start)},
-                 {"sun_shading_agreement", sun_agreement}, {"sun_from_shadows", sun_search_report},
+                 {"sun_choice", sun_choice_report}, {"sun_from_shadows", sun_search_report},
                  {"hidden_facades", facades.size()},
                  {"visible_sources", visible_sources}, {"hypotheses", hypotheses}, {"kept", out.lights.size()}};
   out.reports.push_back(fit);

@@ -54,7 +54,7 @@ Fitted fit_street(const SyntheticShot& shot, const inference::GeometryEstimate& 
 // the lights (it doubles the scale instead). Without it, the lights follow
 // the guess.
 TEST(StreetLighting, TheSkyNotTheAssumedMeanSetsTheAlbedoScale) {
-  const InferredStreet street = inferred_street(4, 16);  // sky in view, and a sun the fit keeps
+  const InferredStreet street = inferred_street(8, 16);  // sky in view, and a sun the fit keeps
   const SyntheticShot& shot = street.shot;
   const inference::GeometryEstimate& g = street.geometry;
   ASSERT_FALSE(g.indoor);

@@ -15,6 +15,7 @@
 #include "propcam/inference/ibl_library.h"
 #include "propcam/inference/infer.h"
 #include "propcam/inference/intensity_fit.h"
+#include "propcam/inference/sun_choice.h"
 #include "propcam/inference/scene_model.h"
 
 namespace propcam::inference {
@@ -272,6 +273,27 @@ void add_inference_cases(std::vector<HardCase>& cases) {
                      const IntensityFitResult r = fit_intensities(p, unclocked_fit());
                      check(r.weights.sum() == 0.0, "no light can explain the photo");
                      add_fit(d, r);
+                   }});
+  cases.push_back({"SunChoiceBlackSkyAndNonFiniteTexels", m,
+                   "choose_sun with a black sky render, then NaN/Inf photo and candidate texels",
+                   "a candidate in range, finite shares and correlations", Expect::Result, {}, [](Digest& d) {
+                     const auto filled = [](float v) { return cv::Mat(12, 16, CV_32FC3, cv::Scalar::all(v)); };
+                     std::vector<cv::Point> pixels;
+                     for (int y = 0; y < 12; ++y)
+                       for (int x = 0; x < 16; ++x) pixels.push_back({x, y});
+                     cv::Mat photo = filled(0.3f), sun = filled(0.5f);
+                     photo.at<cv::Vec3f>(0, 0) = cv::Vec3f::all(kNan);
+                     photo.at<cv::Vec3f>(1, 1) = cv::Vec3f::all(kInf);
+                     sun.at<cv::Vec3f>(2, 2) = cv::Vec3f::all(kNan);
+                     for (const cv::Mat& sky : {filled(0.f), filled(0.1f)}) {
+                       const SunChoice c = choose_sun({sun, filled(0.2f)}, sky, filled(0.5f), photo, pixels);
+                       check(c.chosen >= 0 && c.chosen < 2, "a candidate is chosen");
+                       for (size_t i = 0; i < 2; ++i)
+                         check(std::isfinite(c.sunlit_share[i]) && std::isfinite(c.agreement[i]), "finite scores");
+                       d.integer(c.chosen);
+                       d.integer(c.must_be_sunlit);
+                       for (size_t i = 0; i < 2; ++i) d.number(c.sunlit_share[i]), d.number(c.agreement[i]);
+                     }
                    }});
   cases.push_back({"IntensityFitMismatchedSizes", m, "fit_intensities with a 64-pixel basis and a 63-pixel target",
                    "error saying a basis render has the wrong pixel count", Expect::Error, {"pixel count"}, [](Digest&) {

@@ -15,6 +15,7 @@
 #include "propcam/inference/light_classifier.h"
 #include "propcam/inference/scene_model.h"
 #include "propcam/inference/sky.h"
+#include "propcam/inference/sun_choice.h"
 #include "propcam/inference/sun_from_shadows.h"
 #include "propcam/render/camera.h"
 
@@ -68,9 +69,10 @@ struct LightingOptions {
   // on dark streets the sky alone then over-explains the photo and the sun
   // comes out weak (`propcam bench lighting --sweeps sky`).
   bool albedo_scale_from_sky = true;
-  // Outdoors, weigh only the sun candidate whose shading agrees best with the
-  // photo; off, the fit weighs them all and keeps the one that alone fits best.
+  // Outdoors, weigh only the sun candidate the photo calls for (sun_choice.h);
+  // off, the fit weighs them all and keeps the one that alone fits best.
   bool sun_from_shading = true;
+  SunChoiceOptions sun_choice;
   // Outdoors under a seen sky, the sun is not a fixed set of hypotheses but
   // searched for (sun_from_shadows.h): the direction whose cast shadows on
   // the scene's geometry explain the photo, and its strength against the sky
