@@ -44,7 +44,9 @@ TEST(IblLibraryHardCases, RejectsWrongImageTypes) {
 class CorruptLibrary : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = std::string(PROPCAM_BINARY_DIR) + "/test_ibl_library_corrupt";
+    // One folder per test: ctest runs this suite's tests in parallel.
+    dir_ = std::string(PROPCAM_BINARY_DIR) + "/test_ibl_library_corrupt/" +
+           ::testing::UnitTest::GetInstance()->current_test_info()->name();
     std::filesystem::remove_all(dir_);
     IblLibraryOptions options;
     options.width = 32;
