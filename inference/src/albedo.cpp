@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "propcam/inference/poisson.h"
+#include "luminance.h"
 
 namespace propcam::inference {
 namespace {
@@ -24,8 +25,7 @@ cv::Mat estimate_albedo(const cv::Mat& photo_linear, const AlbedoOptions& option
   if (photo_linear.empty() || photo_linear.type() != CV_32FC3)
     throw std::invalid_argument("estimate_albedo: need a non-empty CV_32FC3 image");
   if (options.method == AlbedoOptions::Method::BlurredShading) {
-    cv::Mat lum;
-    cv::transform(photo_linear, lum, cv::Matx13f(0.2126f, 0.7152f, 0.0722f));
+    const cv::Mat lum = luminance_image(photo_linear);
     const double sigma = std::max(1.0, options.blur_sigma_fraction * std::hypot(lum.cols, lum.rows));
     cv::Mat shading;
     cv::GaussianBlur(lum, shading, cv::Size(0, 0), sigma, sigma, cv::BORDER_REFLECT);

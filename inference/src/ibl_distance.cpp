@@ -4,6 +4,8 @@
 #include <stdexcept>
 #include <vector>
 
+#include "luminance.h"
+
 namespace propcam::inference {
 namespace {
 
@@ -77,9 +79,8 @@ double ibl_render_distance(const ShRadiance& a, const Eigen::Matrix3d& rotation_
       sa.push_back(sh_irradiance(a, rotation_a * n) / kPi);
       sb.push_back(sh_irradiance(b, rotation_b * n) / kPi);
       weight.push_back(w);
-      const Eigen::Vector3d lum(0.2126, 0.7152, 0.0722);
-      mean_a += w * lum.dot(sa.back());
-      mean_b += w * lum.dot(sb.back());
+      mean_a += w * luminance(sa.back());
+      mean_b += w * luminance(sb.back());
       total += w;
     }
   mean_a /= total;

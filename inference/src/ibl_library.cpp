@@ -15,6 +15,7 @@
 #include <stdexcept>
 
 #include "propcam/capture/image_file.h"
+#include "luminance.h"
 
 namespace propcam::inference {
 namespace {
@@ -52,8 +53,6 @@ Eigen::Vector3d uv_to_direction(double u, double v) {
   const double s = std::sin(theta);
   return {s * std::sin(phi), std::cos(theta), -s * std::cos(phi)};
 }
-
-double luminance(const cv::Vec3f& c) { return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]; }
 
 // Solid angle of one texel in row y.
 double texel_solid_angle(int y, int rows, int cols) {

@@ -13,6 +13,7 @@
 #include "propcam/capture/image_file.h"
 #include "propcam/inference/orientation_map.h"
 #include "propcam/render/panorama.h"
+#include "luminance.h"
 
 namespace propcam::inference {
 namespace {
@@ -214,9 +215,7 @@ IblViewFeatures ibl_view_features(const IblFeatureInputs& in) {
   f.om = to_grid(om);
   f.lc = two_channel(to_grid(lc));
   // --- Spatial pyramid of gradient words on the encoded grey image.
-  cv::Mat grey;
-  cv::transform(encoded, grey, cv::Matx13f(0.2126f, 0.7152f, 0.0722f));
-  f.sp = spatial_pyramid(grey);
+  f.sp = spatial_pyramid(luminance_image(encoded));
   // --- HSV histograms (OpenCV's float HSV: H in [0, 360), S and V in [0, 1]).
   cv::Mat hsv;
   cv::cvtColor(encoded, hsv, cv::COLOR_RGB2HSV);

@@ -10,6 +10,8 @@
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 
+#include "luminance.h"
+
 namespace propcam::inference {
 namespace {
 
@@ -93,7 +95,7 @@ class WeightResidual : public ceres::CostFunction {
 double basis_noise(const cv::Mat& render, const cv::Mat& mask) {
   if (render.empty()) return 0.0;
   cv::Mat y;
-  if (render.channels() == 3) cv::transform(render, y, cv::Matx13f(0.2126f, 0.7152f, 0.0722f));
+  if (render.channels() == 3) y = luminance_image(render);
   else render.convertTo(y, CV_32F);
   double gradient = 0.0, value = 0.0;
   long count = 0;

@@ -15,6 +15,7 @@
 #include "atomic_file.h"
 #include "propcam/capture/image_file.h"
 #include "propcam/render/panorama.h"
+#include "luminance.h"
 
 #ifndef PROPCAM_LIGHT_CLASSIFIER_PATH
 #define PROPCAM_LIGHT_CLASSIFIER_PATH ""
@@ -325,9 +326,7 @@ std::vector<LabelledView> panorama_views(const cv::Mat& latlong, int views_per_t
       (void)scale;
       LabelledView view;
       // Sources: radiance well above what the exposure can record (white = 1).
-      cv::Mat lum;
-      cv::transform(linear, lum, cv::Matx13f(0.2126f, 0.7152f, 0.0722f));
-      view.source_mask = lum >= source_over_white;
+      view.source_mask = luminance_image(linear) >= source_over_white;
       view.photo_linear = capture::srgb8_to_linear(capture::linear_to_srgb8(linear));
       out.push_back(std::move(view));
     }
@@ -357,8 +356,7 @@ LabelledFeatures labelled_features(const std::vector<LabelledView>& views, const
 }
 
 cv::Mat threshold_source_mask(const cv::Mat& photo_linear, double fraction_of_max, double min_luminance) {
-  cv::Mat lum;
-  cv::transform(photo_linear, lum, cv::Matx13f(0.2126f, 0.7152f, 0.0722f));
+  const cv::Mat lum = luminance_image(photo_linear);
   double max_lum = 0;
   cv::minMaxLoc(lum, nullptr, &max_lum);
   return lum >= std::max(min_luminance, fraction_of_max * max_lum);

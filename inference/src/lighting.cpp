@@ -17,6 +17,7 @@
 #include "propcam/render/depth_mesh.h"
 #include "propcam/render/path_tracer.h"
 #include "propcam/render/scene.h"
+#include "luminance.h"
 
 namespace propcam::inference {
 namespace {
@@ -39,12 +40,6 @@ constexpr double kMinSourceChannel = 0.05;
 
 double seconds_since(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
-}
-
-cv::Mat luminance(const cv::Mat& rgb) {
-  cv::Mat grey;
-  cv::transform(rgb, grey, cv::Matx13f(0.2126f, 0.7152f, 0.0722f));
-  return grey;
 }
 
 // Fits a one-sided quad to the 3D points of a source region (normal along
@@ -115,7 +110,7 @@ LightSource facing_quad(const Vector3d& from, const Vector3d& dir, double distan
 }
 
 Vector3d unit_luminance_colour(const Vector3d& rgb) {
-  const double lum = 0.2126 * rgb.x() + 0.7152 * rgb.y() + 0.0722 * rgb.z();
+  const double lum = luminance(rgb);
   if (!(lum > 0)) return Vector3d::Ones();
   return (rgb / lum).cwiseMax(kMinSourceChannel);
 }
@@ -262,7 +257,7 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   LightingEstimate out;
   // --- Visible sources: bright connected regions, lifted to 3D with depth.
   auto start = Clock::now();
-  const cv::Mat lum = luminance(photo_linear);
+  const cv::Mat lum = luminance_image(photo_linear);
   double max_lum = 0;
   cv::minMaxLoc(lum, nullptr, &max_lum);
   const double threshold = std::max(options.min_source_luminance, options.bright_fraction_of_max * max_lum);
@@ -481,11 +476,11 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   // Channel c in 0..2, or 3 for luminance.
   auto basis_value = [&](int i, const cv::Point& p, int c) -> double {
     const cv::Vec3f v = basis[i].at<cv::Vec3f>(p);
-    return c < 3 ? v[c] : 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2];
+    return c < 3 ? v[c] : luminance(v);
   };
   auto photo_value = [&](const cv::Point& p, int c) -> double {
     const cv::Vec3f v = fit_photo.at<cv::Vec3f>(p);
-    return c < 3 ? v[c] : 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2];
+    return c < 3 ? v[c] : luminance(v);
   };
   std::vector<double> lower(k, 0.0), upper(k, std::numeric_limits<double>::infinity());
   // The environment is last; a seen sky is measured: weight 1, or, when it
@@ -608,7 +603,7 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   // A searched sun's strength is the shadows' (weighed with the sky): the
   // balance may tint it, not rescale it.
   if (searched_sun >= 0) {
-    const double level = 0.2126 * gains[0] + 0.7152 * gains[1] + 0.0722 * gains[2];
+    const double level = luminance(gains);
     if (level > 0) gains /= level;
   }
   // The balance may tint the lights only so far: the estimated albedo already
@@ -616,7 +611,7 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   // double-counts it (a warm room fitted blue lights, and a grey prop came
   // out blue).
   {
-    const double level = 0.2126 * gains[0] + 0.7152 * gains[1] + 0.0722 * gains[2];
+    const double level = luminance(gains);
     const double max_tint = std::max(1.0, options.max_light_tint);
     if (level > 0)
       for (int c = 0; c < 3; ++c) gains[c] = level * std::clamp(gains[c] / level, 1.0 / max_tint, max_tint);

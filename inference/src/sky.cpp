@@ -6,6 +6,8 @@
 #include <opencv2/imgproc.hpp>
 #include <vector>
 
+#include "luminance.h"
+
 namespace propcam::inference {
 namespace {
 
@@ -23,8 +25,7 @@ SkyEstimate detect_sky(const cv::Mat& photo_linear, const render::PinholeCamera&
   const int h = std::max(2, static_cast<int>(std::lround(static_cast<double>(w) * photo_linear.rows / photo_linear.cols)));
   cv::Mat small;
   cv::resize(photo_linear, small, {w, h}, 0, 0, cv::INTER_AREA);
-  cv::Mat lum;
-  cv::transform(small, lum, cv::Matx13f(0.2126f, 0.7152f, 0.0722f));
+  const cv::Mat lum = luminance_image(small);
   cv::Mat log_lum;
   cv::log(lum + kLogOffset, log_lum);
   cv::GaussianBlur(log_lum, log_lum, {0, 0}, 0.8);

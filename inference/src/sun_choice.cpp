@@ -5,6 +5,8 @@
 #include <limits>
 #include <opencv2/imgproc.hpp>
 
+#include "luminance.h"
+
 namespace propcam::inference {
 namespace {
 
@@ -15,14 +17,6 @@ constexpr double kMinAlbedo = 0.02;
 constexpr double kMinLuminance = 1e-4;  // keeps the log finite on black pixels
 // A side whose variance is below this share of its energy is constant.
 constexpr double kRelativeVariance = 1e-12;
-
-double luminance(const cv::Vec3f& v) { return 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2]; }
-
-cv::Mat luminance_of(const cv::Mat& rgb) {
-  cv::Mat out;
-  cv::transform(rgb, out, cv::Matx13f(0.2126f, 0.7152f, 0.0722f));
-  return out;
-}
 
 // Two passes, so that a constant side is exactly uncorrelated (0), not
 // rounding noise.
@@ -57,7 +51,7 @@ SunChoice choose_sun(const std::vector<cv::Mat>& candidates, const cv::Mat& sky,
   }
   // The sky's irradiance (over pi) per pixel: its render over the albedo it
   // was rendered with, both blurred alike.
-  cv::Mat sky_lum = luminance_of(sky), albedo_lum = luminance_of(albedo), sky_blur, albedo_blur;
+  cv::Mat sky_lum = luminance_image(sky), albedo_lum = luminance_image(albedo), sky_blur, albedo_blur;
   const double sigma = std::max(0.0, options.sky_irradiance_blur_px);
   if (sigma > 0) {
     cv::GaussianBlur(sky_lum, sky_blur, {0, 0}, sigma);

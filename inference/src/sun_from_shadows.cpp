@@ -6,6 +6,7 @@
 #include <numbers>
 
 #include "propcam/render/path_tracer.h"
+#include "luminance.h"
 
 namespace propcam::inference {
 namespace {
@@ -25,8 +26,6 @@ constexpr int kMinGroupPixels = 16;
 constexpr double kDefaultGroundAlbedo = 0.2, kMinGroundAlbedo = 0.05, kMaxGroundAlbedo = 0.6;
 // Golden-section steps on log(ratio) after the ladder's best rung.
 constexpr int kRatioRefineSteps = 10;
-
-double luminance(const cv::Vec3f& v) { return 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2]; }
 
 struct Sample {
   Vector3d point, normal;
