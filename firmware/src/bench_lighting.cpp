@@ -320,6 +320,15 @@ std::vector<Config> configs(const std::vector<std::string>& sweeps) {
     out.push_back({"sun", "16 sun hypotheses, by fit error", 0,
                    [](inference::InferenceOptions& o) { o.lighting.sun_from_shading = false; }});
   }
+  if (wanted("nosun"))
+    out.push_back({"nosun", "outdoors no sun: sky and ranked non-sun lights only", 0, [](inference::InferenceOptions& o) {
+                     o.lighting.sun_azimuths = 0;
+                     o.lighting.ibl_candidates_outdoor = 0;
+                   }});
+  if (wanted("sun_strength"))
+    for (double m : {0.05, 0.10, 0.20})
+      out.push_back({"sun_strength", "seen mean albedo >= " + std::to_string(m).substr(0, 4), m,
+                     [m](inference::InferenceOptions& o) { o.lighting.min_mean_albedo = m; }});
   if (wanted("facades"))
     out.push_back({"facades", "hidden facades (seen facades continued out of the frame)", 1,
                    [](inference::InferenceOptions& o) { o.lighting.hidden_facades = true; }});
@@ -508,7 +517,7 @@ CLI::App* add_bench_lighting_command(CLI::App& bench, LightingBenchArgs& a) {
   cmd->add_option("--spp", a.options.spp, "Samples per pixel of photos, references and composites")->check(CLI::PositiveNumber);
   cmd->add_option("--prop", a.options.prop, "Prop inserted for the composite error");
   cmd->add_option("--height", a.options.prop_height_m, "Prop height in metres (0: its natural height)");
-  cmd->add_option("--sweeps", a.sweeps, "Comma-separated subset of basis_spp,basis_width,fit_pixels,superpixels,tint,ibl,sky,sun,facades,albedo,response (default: all), or oracle (the true camera and depth; only when named)");
+  cmd->add_option("--sweeps", a.sweeps, "Comma-separated subset of basis_spp,basis_width,fit_pixels,superpixels,tint,ibl,sky,sun,facades,nosun,sun_strength,albedo,response (default: all), or oracle (the true camera and depth; only when named)");
   cmd->add_option("--plot", a.options.plot_dir, "Write lighting.png (gnuplot) to this folder");
   cmd->add_flag("--json", a.json_out, "Machine-readable output");
   return cmd;
@@ -516,7 +525,7 @@ CLI::App* add_bench_lighting_command(CLI::App& bench, LightingBenchArgs& a) {
 
 int run_bench_lighting_command(LightingBenchArgs a) {
   parse_bench_size(a.size, 16, a.options.width, a.options.height);
-  a.options.sweeps = parse_sweeps(a.sweeps, {"default", "basis_spp", "basis_width", "fit_pixels", "superpixels", "tint", "ibl", "sky", "sun", "facades", "albedo", "response", "oracle"});
+  a.options.sweeps = parse_sweeps(a.sweeps, {"default", "basis_spp", "basis_width", "fit_pixels", "superpixels", "tint", "ibl", "sky", "sun", "facades", "nosun", "sun_strength", "albedo", "response", "oracle"});
   a.options.quiet = a.json_out;
   const json result = run_lighting_bench(a.options);
   if (!a.options.plot_dir.empty()) plot_lighting_bench(result, a.options.plot_dir);

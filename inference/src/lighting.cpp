@@ -32,9 +32,6 @@ constexpr double kSaturatedLinear = 0.98;
 constexpr double kMinBasisEnergy = 1e-12;
 // The per-channel balance may tint the fitted lights this much, no more.
 constexpr double kMinChannelGain = 0.25, kMaxChannelGain = 4.0;
-// The albedo's scale the seen sky may imply: a mean albedo of 0.5 (the
-// assumed one) times 0.1 is coal, times 1.9 is snow.
-constexpr double kMinAlbedoScale = 0.1, kMaxAlbedoScale = 1.9;
 // No channel of a seen source's colour drops below this share of its luminance.
 constexpr double kMinSourceChannel = 0.05;
 
@@ -76,6 +73,11 @@ LightSource quad_from_points(const std::vector<Vector3d>& points, const Vector3d
 
 // Distant lights (suns, sky patches) are quads this far away.
 constexpr double kSunDistanceM = 1000.0;
+// The albedo's scale the seen sky may imply (LightingOptions::
+// albedo_scale_from_sky): a mean albedo of 0.5 (the assumed one) times 0.1
+// is coal, times 1.9 is snow. Below kMinMeanAlbedo an albedo image is black
+// and says nothing of its mean.
+constexpr double kMinAlbedoScale = 0.1, kMaxAlbedoScale = 1.9, kMinMeanAlbedo = 1e-4;
 constexpr double kSunDiameterRad = 0.5 * std::numbers::pi / 180.0;
 // Ranked panoramas' lamps and windows, by distance class (ibl_library.h).
 constexpr double kCloseLightM = 1.0, kMediumLightM = 2.5, kFarLightM = 5.0;
@@ -487,7 +489,12 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   // sets the albedo's scale, the scale (see LightingOptions).
   const bool scale_from_sky = sky_calibrated && options.albedo_scale_from_sky;
   if (sky_calibrated) {
-    lower[k - 1] = scale_from_sky ? kMinAlbedoScale : 1.0;
+    // The scale that brings the seen surfaces' mean albedo to the floor.
+    double albedo_sum = 0;
+    for (const cv::Point& p : used) albedo_sum += luminance(fit_albedo.at<cv::Vec3f>(p));
+    const double mean_albedo = used.empty() ? 0.0 : albedo_sum / static_cast<double>(used.size());
+    const double floor_scale = mean_albedo > kMinMeanAlbedo ? options.min_mean_albedo / mean_albedo : kMinAlbedoScale;
+    lower[k - 1] = scale_from_sky ? std::clamp(floor_scale, kMinAlbedoScale, kMaxAlbedoScale) : 1.0;
     upper[k - 1] = scale_from_sky ? kMaxAlbedoScale : 1.0;
   }
   // Which lights, how bright, and the camera response: the paper's fit

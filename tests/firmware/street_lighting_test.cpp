@@ -2,8 +2,12 @@
 // scale that a single photo leaves open (LightingOptions::albedo_scale_from_sky).
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
+
 #include "compositor.h"
 #include "propcam/inference/infer.h"
+#include "propcam/render/depth_mesh.h"
 #include "propcam/render/props.h"
 #include "synthetic_truth.h"
 
@@ -71,6 +75,61 @@ TEST(StreetLighting, TheSkyNotTheAssumedMeanSetsTheAlbedoScale) {
   EXPECT_EQ(fixed_a.albedo_scale, 1.0);
   EXPECT_EQ(fixed_b.albedo_scale, 1.0);
   EXPECT_NEAR(fixed_b.mean_albedo / fixed_a.mean_albedo, 0.5, 0.1);
+}
+
+// The mean albedo of what the photo shows (its surfaces, not the sky) and
+// the irradiance of the brightest distant light (the sun) of a street fitted
+// with LightingOptions::min_mean_albedo at `floor`.
+struct Floored {
+  double albedo_scale = 0, seen_mean_albedo = 0, sun_irradiance = 0;
+};
+
+Floored fit_with_albedo_floor(const InferredStreet& street, double floor) {
+  inference::InferenceOptions o;
+  o.lighting.min_mean_albedo = floor;
+  const inference::SceneModel est = inference::complete_scene(street.shot.photo_linear, street.geometry, o);
+  Floored f;
+  for (const auto& r : est.reports)
+    if (r.stage == "light_intensities") f.albedo_scale = r.details.at("albedo_scale").get<double>();
+  double sum = 0;
+  int n = 0;
+  for (int y = 0; y < est.albedo.rows; ++y)
+    for (int x = 0; x < est.albedo.cols; ++x) {
+      if (!(est.depth.at<float>(y, x) < render::kSkyDepthM)) continue;
+      const cv::Vec3f a = est.albedo.at<cv::Vec3f>(y, x);
+      sum += 0.2126 * a[0] + 0.7152 * a[1] + 0.0722 * a[2];
+      ++n;
+    }
+  f.seen_mean_albedo = n > 0 ? sum / n : 0.0;
+  const Eigen::Vector3d centre = est.camera().center_world;
+  for (const auto& l : est.lights) {
+    if (!inference::distant_light_direction(l, centre)) continue;
+    const double solid_angle = l.type == inference::LightSource::Type::Area
+                                   ? l.edge_u.cross(l.edge_v).norm() / (l.position - centre).squaredNorm()
+                                   : 1.0;
+    f.sun_irradiance = std::max(f.sun_irradiance, l.intensity.mean() * solid_angle);
+  }
+  return f;
+}
+
+// Street 17's fit, left alone, darkens the albedo to a tenth of the assumed
+// mean and makes up for it with a sun several times the true one. With a
+// floor on the seen surfaces' mean albedo the scale stops there, and the sun
+// comes out dimmer.
+TEST(StreetLighting, AFloorOnTheSeenMeanAlbedoHoldsAndDimsTheSun) {
+  const InferredStreet street = inferred_street(17, 16);
+  ASSERT_FALSE(street.geometry.indoor);
+  const Floored low = fit_with_albedo_floor(street, 0.02), high = fit_with_albedo_floor(street, 0.2);
+  EXPECT_LT(low.seen_mean_albedo, 0.15) << "the case this guards: the fit darkens the albedo";
+  EXPECT_GE(high.seen_mean_albedo, 0.2 * 0.9);  // the floor is set on the fit's pixels, at its size
+  EXPECT_GT(high.albedo_scale, low.albedo_scale);
+  ASSERT_GT(low.sun_irradiance, 0);
+  EXPECT_LT(high.sun_irradiance, low.sun_irradiance);
+  // A floor no scale can reach stops at the scale's bound, finite.
+  const Floored absurd = fit_with_albedo_floor(street, 100.0);
+  EXPECT_TRUE(std::isfinite(absurd.albedo_scale));
+  EXPECT_LE(absurd.albedo_scale, 1.9 + 1e-9);
+  EXPECT_TRUE(std::isfinite(absurd.sun_irradiance));
 }
 
 }  // namespace

@@ -69,6 +69,12 @@ struct LightingOptions {
   // on dark streets the sky alone then over-explains the photo and the sun
   // comes out weak (`propcam bench lighting --sweeps sky`).
   bool albedo_scale_from_sky = true;
+  // The albedo's scale the sky may set keeps the mean albedo of the surfaces
+  // the fit sees at or above this (streets and cities measure 0.1-0.25).
+  // Below it the fit trades a darker albedo for a brighter sun, up to 3x the
+  // true one, and the prop gets that sun (`propcam bench lighting --streets
+  // 100 --sweeps sun_strength`; inference/README.md).
+  double min_mean_albedo = 0.15;
   // Outdoors, weigh only the sun candidate the photo calls for (sun_choice.h);
   // off, the fit weighs them all and keeps the one that alone fits best.
   bool sun_from_shading = true;
