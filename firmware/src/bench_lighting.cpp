@@ -176,12 +176,9 @@ void score_scene(const Shot& s, const inference::SceneModel& est, const render::
   Vector3d sun = Vector3d::Zero();
   for (const auto& l : est.lights) {
     const std::optional<Vector3d> d = inference::distant_light_direction(l, centre);
-    if (!d) continue;
-    // A far quad's irradiance: radiance times the solid angle it subtends.
-    const double power = luminance(l.intensity.cast<float>()) *
-                         (l.type == inference::LightSource::Type::Area
-                              ? l.edge_u.cross(l.edge_v).norm() / (l.position - centre).squaredNorm()
-                              : 1.0);
+    const std::optional<Vector3d> irradiance = inference::distant_light_irradiance(l, centre);
+    if (!d || !irradiance) continue;
+    const double power = luminance(irradiance->cast<float>());
     if (power > brightest) brightest = power, sun = *d;
   }
   e.true_sun_elevation_deg = std::asin(std::clamp(true_sun.y(), -1.0, 1.0)) * kRadToDeg;

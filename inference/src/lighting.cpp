@@ -488,14 +488,16 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   // The environment is last; a seen sky is measured: weight 1, or, when it
   // sets the albedo's scale, the scale (see LightingOptions).
   const bool scale_from_sky = sky_calibrated && options.albedo_scale_from_sky;
-  if (sky_calibrated) {
+  if (scale_from_sky) {
     // The scale that brings the seen surfaces' mean albedo to the floor.
     double albedo_sum = 0;
     for (const cv::Point& p : used) albedo_sum += luminance(fit_albedo.at<cv::Vec3f>(p));
     const double mean_albedo = used.empty() ? 0.0 : albedo_sum / static_cast<double>(used.size());
     const double floor_scale = mean_albedo > kMinMeanAlbedo ? options.min_mean_albedo / mean_albedo : kMinAlbedoScale;
-    lower[k - 1] = scale_from_sky ? std::clamp(floor_scale, kMinAlbedoScale, kMaxAlbedoScale) : 1.0;
-    upper[k - 1] = scale_from_sky ? kMaxAlbedoScale : 1.0;
+    lower[k - 1] = std::clamp(floor_scale, kMinAlbedoScale, kMaxAlbedoScale);
+    upper[k - 1] = kMaxAlbedoScale;
+  } else if (sky_calibrated) {
+    lower[k - 1] = upper[k - 1] = 1.0;
   }
   // Which lights, how bright, and the camera response: the paper's fit
   // (intensity_fit.h) on luminance, the photo as the camera encoded it

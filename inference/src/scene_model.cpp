@@ -83,6 +83,12 @@ std::optional<Eigen::Vector3d> distant_light_direction(const LightSource& light,
   return to.normalized();
 }
 
+std::optional<Eigen::Vector3d> distant_light_irradiance(const LightSource& light, const Eigen::Vector3d& from) {
+  if (!distant_light_direction(light, from)) return std::nullopt;
+  if (light.type == LightSource::Type::Sun) return light.intensity;
+  return Eigen::Vector3d(light.intensity * (light.edge_u.cross(light.edge_v).norm() / (light.position - from).squaredNorm()));
+}
+
 json to_json(const StageReport& r) {
   json j = {{"stage", r.stage}, {"usable", r.usable}, {"why", r.why}, {"iterations", r.iterations},
             {"seconds", r.seconds}};

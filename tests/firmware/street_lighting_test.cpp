@@ -102,13 +102,9 @@ Floored fit_with_albedo_floor(const InferredStreet& street, double floor) {
     }
   f.seen_mean_albedo = n > 0 ? sum / n : 0.0;
   const Eigen::Vector3d centre = est.camera().center_world;
-  for (const auto& l : est.lights) {
-    if (!inference::distant_light_direction(l, centre)) continue;
-    const double solid_angle = l.type == inference::LightSource::Type::Area
-                                   ? l.edge_u.cross(l.edge_v).norm() / (l.position - centre).squaredNorm()
-                                   : 1.0;
-    f.sun_irradiance = std::max(f.sun_irradiance, l.intensity.mean() * solid_angle);
-  }
+  for (const auto& l : est.lights)
+    if (const auto irradiance = inference::distant_light_irradiance(l, centre))
+      f.sun_irradiance = std::max(f.sun_irradiance, irradiance->mean());
   return f;
 }
 

@@ -61,5 +61,28 @@ TEST(SceneModel, DistantLightsGiveADirectionAndRoomLightsNone) {
   EXPECT_FALSE(distant_light_direction(point, camera)) << "only suns and area lights stand for distant light";
 }
 
+TEST(SceneModel, ADistantLightsIrradianceIsItsRadianceTimesItsSolidAngle) {
+  const Eigen::Vector3d camera(1, 1.5, -2);
+  LightSource sun;
+  sun.type = LightSource::Type::Sun;
+  sun.direction = Eigen::Vector3d(0, 1, 0);
+  sun.intensity = Eigen::Vector3d(3, 2, 1);
+  ASSERT_TRUE(distant_light_irradiance(sun, camera));
+  EXPECT_TRUE(distant_light_irradiance(sun, camera)->isApprox(Eigen::Vector3d(3, 2, 1)));
+
+  LightSource patch;  // 10 m square, 1 km out: 1e-4 sr
+  patch.type = LightSource::Type::Area;
+  patch.position = camera + Eigen::Vector3d(0, 1000, 0);
+  patch.edge_u = Eigen::Vector3d(10, 0, 0);
+  patch.edge_v = Eigen::Vector3d(0, 0, 10);
+  patch.intensity = Eigen::Vector3d(2e4, 1e4, 0);
+  ASSERT_TRUE(distant_light_irradiance(patch, camera));
+  EXPECT_TRUE(distant_light_irradiance(patch, camera)->isApprox(Eigen::Vector3d(2, 1, 0)));
+
+  LightSource lamp = patch;  // in the room: no irradiance from afar
+  lamp.position = camera + Eigen::Vector3d(0, 1.2, 2);
+  EXPECT_FALSE(distant_light_irradiance(lamp, camera));
+}
+
 }  // namespace
 }  // namespace propcam::inference

@@ -53,6 +53,11 @@ constexpr double kDistantLightM = 100.0;
 // no direction).
 std::optional<Eigen::Vector3d> distant_light_direction(const LightSource& light, const Eigen::Vector3d& from);
 
+// The irradiance a distant light gives a surface at `from` facing it (linear
+// RGB): a sun's intensity, or a far area light's radiance times the solid
+// angle it subtends. None for the lights distant_light_direction refuses.
+std::optional<Eigen::Vector3d> distant_light_irradiance(const LightSource& light, const Eigen::Vector3d& from);
+
 struct SupportPlane {
   std::string name;       // floor, wall_front, table_1, ...
   Eigen::Vector3d normal;  // world, unit, facing the camera
