@@ -27,6 +27,9 @@ packages=(
   # real photographs for tests: OpenCV's sample images, and CC0 HDR panoramas
   # (blender-data's studio lights) that real views and, later, the IBL library are cut from
   opencv-doc blender-data
+  # the Blender world (scripts/make_blender_world.sh) and its units check:
+  # scenes made and rendered by Cycles, not by our code (its Python uses numpy)
+  blender python3-numpy
   # the qemu board (board/qemu/): QEMU, the initramfs (static busybox, cpio, kmod's
   # modprobe/depmod, xz for the vmlinux), the stick's FAT image (dosfstools, mtools),
   # the guest's tools (gpiod, v4l-utils), the VM driver (python3); the kernel and

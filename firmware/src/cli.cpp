@@ -16,6 +16,7 @@
 #include "bench_camera.h"
 #include "bench_geometry.h"
 #include "bench_lighting.h"
+#include "bench_worlds.h"
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
@@ -36,6 +37,7 @@
 #include "propcam/render/depth_of_field.h"
 #include "propcam/render/panorama.h"
 #include "propcam/render/relight.h"
+#include "propcam/render/mesh_io.h"
 #include "propcam/render/props.h"
 #include "propcam/render/scene_file.h"
 #include "synthetic_truth.h"
@@ -318,8 +320,20 @@ int cmd_composite(const CompositeArgs& a) {
 struct PropsArgs {
   bool json_out = false;
   std::string thumbnails_dir;  // empty: list only
+  std::string export_dir;      // empty: no export
   int thumbnail_size = 256, thumbnail_spp = 64;
 };
+
+// A preset's materials exactly as the renderer has them (the MTL rounds
+// roughness through Ns): what another renderer needs to draw the same prop.
+json prop_materials_json(const render::Mesh& mesh) {
+  json materials = json::object();
+  const auto rgb = [](const Eigen::Vector3f& c) { return json::array({c.x(), c.y(), c.z()}); };
+  for (const render::Material& m : mesh.materials)
+    materials[m.name] = {{"type", render::to_string(m.type)}, {"albedo", rgb(m.albedo)}, {"specular", m.specular},
+                         {"roughness", m.roughness}, {"ior", m.ior}, {"emission", rgb(m.emission)}};
+  return materials;
+}
 
 int cmd_props(const PropsArgs& a) {
   const bool json_out = a.json_out;
@@ -332,6 +346,17 @@ int cmd_props(const PropsArgs& a) {
       capture::write_image(path, thumbnail);  // linear float: encoded to sRGB
       std::fprintf(stderr, "wrote %s (%.2fs)\n", path.c_str(),
                    std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+    }
+  }
+  if (!a.export_dir.empty()) {
+    std::filesystem::create_directories(a.export_dir);
+    for (const auto& p : render::prop_presets()) {
+      const render::Mesh m = render::make_prop(p.name);
+      const std::filesystem::path base = std::filesystem::path(a.export_dir) / p.name;
+      render::save_obj(m, base.string() + ".obj");
+      std::ofstream materials(base.string() + ".materials.json");
+      materials << prop_materials_json(m).dump(2) << "\n";
+      if (!materials) throw std::runtime_error("cannot write " + base.string() + ".materials.json");
     }
   }
   json list = json::array();
@@ -561,6 +586,8 @@ int run_cli(int argc, char** argv) {
   auto* props = app.add_subcommand("props", "List the preset props (and render their thumbnails)");
   props->add_flag("--json", props_args.json_out, "Machine-readable output");
   props->add_option("--thumbnails", props_args.thumbnails_dir, "Render every preset's thumbnail to DIR/<name>.png");
+  props->add_option("--export", props_args.export_dir,
+                    "Write every preset to DIR/<name>.obj (+ .mtl) and DIR/<name>.materials.json (exact materials)");
   props->add_option("--thumbnail-size", props_args.thumbnail_size, "Thumbnail width and height in pixels")
       ->check(CLI::Range(16, 4096));
   props->add_option("--thumbnail-spp", props_args.thumbnail_spp, "Thumbnail samples per pixel")
@@ -644,6 +671,8 @@ int run_cli(int argc, char** argv) {
   auto* bench_scene_class = add_bench_scene_class_command(*bench, bench_scene_class_args);
   LightingBenchArgs bench_lighting_args;
   auto* bench_lighting = add_bench_lighting_command(*bench, bench_lighting_args);
+  WorldsBenchArgs bench_worlds_args;
+  auto* bench_worlds = add_bench_worlds_command(*bench, bench_worlds_args);
   LightTrainingArgs bench_lights_args;
   auto* bench_lights = add_bench_lights_command(*bench, bench_lights_args);
   IblTrainingArgs bench_ibl_args;
@@ -753,6 +782,7 @@ int run_cli(int argc, char** argv) {
     if (*bench_transfer) return run_bench_transfer_command(bench_transfer_args);
     if (*bench_scene_class) return run_bench_scene_class_command(bench_scene_class_args);
     if (*bench_lighting) return run_bench_lighting_command(bench_lighting_args);
+    if (*bench_worlds) return run_bench_worlds_command(bench_worlds_args);
     if (*bench_lights) return run_bench_lights_command(bench_lights_args);
     if (*bench_ibl) return run_bench_ibl_ranking_command(bench_ibl_args);
     if (*bench_capture) return run_bench_capture_command(bench_capture_args);

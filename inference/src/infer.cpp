@@ -93,10 +93,16 @@ GeometryEstimate infer_geometry(const cv::Mat& photo, const InferenceOptions& op
   // references (inference/README.md, "Indoor/outdoor by k-NN"); the rule
   // alone when the references cannot be read.
   std::string refs_why;
-  if (const auto refs = load_once<SceneReferenceSet>(default_scene_reference_path(), refs_why)) {
-    g.indoor = classify_indoor_combined(photo, g.pinhole, *refs, class_report, &g.sky);
+  const std::string refs_path = options.scene_references.empty() ? default_scene_reference_path() : options.scene_references;
+  if (const auto refs = load_once<SceneReferenceSet>(refs_path, refs_why)) {
+    CombinedSceneClassOptions class_options = options.scene_class;
+    if (!options.scene_class_left_out.empty()) {
+      class_options.knn.exclude_group = refs->find_group(options.scene_class_left_out);
+      class_report.details["left_out"] = options.scene_class_left_out;
+    }
+    g.indoor = classify_indoor_combined(photo, g.pinhole, *refs, class_report, &g.sky, class_options);
   } else {
-    g.indoor = classify_indoor(photo, g.pinhole, class_report, &g.sky);
+    g.indoor = classify_indoor(photo, g.pinhole, class_report, &g.sky, options.scene_class.sky);
     class_report.details["method"] = "sky";
     class_report.details["knn_unavailable"] = refs_why;
   }
@@ -207,6 +213,7 @@ SceneModel complete_scene(const cv::Mat& photo_linear, const GeometryEstimate& g
                                                 options.lighting, scene.indoor ? nullptr : &g.sky,
                                                 GeometryCues{g.orientation, g.sky.mask, g.normals});
   scene.hidden_facades = std::move(lighting.hidden_facades);
+  scene.light_source_mask = lighting.source_mask;
   if (lighting.albedo_scale != 1.0) {
     scale_albedo(scene.albedo, lighting.albedo_scale);
     for (auto& f : scene.hidden_facades) f.albedo = (f.albedo * static_cast<float>(lighting.albedo_scale)).cwiseMin(1.f);

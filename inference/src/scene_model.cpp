@@ -14,7 +14,6 @@ using nlohmann::json;
 namespace {
 
 // A point light is rendered as a sphere this small (m): a bulb.
-constexpr float kPointLightRadiusM = 0.05f;
 
 json vec(const Eigen::Vector3d& v) { return json::array({v.x(), v.y(), v.z()}); }
 
@@ -129,7 +128,7 @@ render::LightRig make_light_rig(const std::vector<LightSource>& lights, bool uni
     } else if (l.type == LightSource::Type::Point) {
       render::SphereLight bulb;
       bulb.center = l.position.cast<float>();
-      bulb.radius = kPointLightRadiusM;
+      bulb.radius = static_cast<float>(l.radius);
       bulb.radiance = intensity;
       rig.sphere_lights.push_back(bulb);
     } else if (l.type == LightSource::Type::Ibl && !l.environment.empty()) {
@@ -153,9 +152,12 @@ void SceneModel::validate() const {
   check_finite(depth, "depth");
   check_finite(albedo, "albedo");
   check_finite(normals, "normals");
-  for (const auto& l : lights)
+  for (const auto& l : lights) {
     if (!l.intensity.allFinite() || !l.position.allFinite() || !l.corner.allFinite())
       throw std::runtime_error("scene model: non-finite light");
+    if (l.type == LightSource::Type::Point && !(l.radius >= kMinPointLightRadiusM && l.radius <= kMaxPointLightRadiusM))
+      throw std::runtime_error("scene model: a point light's radius must lie in [1e-4, 2] m");
+  }
   if (hidden_facades.size() > kMaxHiddenFacades) throw std::runtime_error("scene model: too many hidden facades");
   for (const auto& f : hidden_facades) f.validate();
 }
@@ -186,7 +188,10 @@ void save_scene(const SceneModel& scene, const std::string& folder) {
         lj["edge_u"] = vec(l.edge_u);
         lj["edge_v"] = vec(l.edge_v);
         break;
-      case LightSource::Type::Point: lj["position"] = vec(l.position); break;
+      case LightSource::Type::Point:
+        lj["position"] = vec(l.position);
+        lj["radius"] = l.radius;
+        break;
       case LightSource::Type::Sun: lj["direction"] = vec(l.direction); break;
       case LightSource::Type::Ibl: {
         const std::string file = l.file.empty() ? "lights/environment_" + std::to_string(ibl_index++) + ".exr" : l.file;
@@ -263,6 +268,7 @@ SceneModel load_scene(const std::string& folder) {
       l.intensity = vec3(lj.at("intensity"), "intensity");
       if (lj.contains("position")) l.position = vec3(lj["position"], "position");
       if (lj.contains("direction")) l.direction = vec3(lj["direction"], "direction");
+      if (l.type == LightSource::Type::Point) l.radius = lj.value("radius", kDefaultPointLightRadiusM);
       if (l.type == LightSource::Type::Area) {
         l.corner = vec3(lj.at("corner"), "corner");
         l.edge_u = vec3(lj.at("edge_u"), "edge_u");

@@ -82,5 +82,24 @@ TEST_F(SceneJsonHardCases, AnEnvironmentMapOutsideTheFolderIsRejected) {
   }
 }
 
+// Truth scenes carry bulbs of any size; a radius that is no bulb is refused.
+TEST_F(SceneJsonHardCases, APointLightsRadiusLoadsDefaultsAndIsBounded) {
+  const std::string image = R"("width": 64, "height": 48)";
+  EXPECT_DOUBLE_EQ(load(scene_json(image)).lights.at(0).radius, kDefaultPointLightRadiusM);
+  const SceneModel bulb = load(scene_json(image, R"({"type": "point", "intensity": [1, 1, 1], "radius": 0.012})"));
+  EXPECT_DOUBLE_EQ(bulb.lights.at(0).radius, 0.012);
+  EXPECT_FLOAT_EQ(bulb.light_rig().sphere_lights.at(0).radius, 0.012f);
+  for (const char* radius : {"0", "-1", "1e300"})
+    EXPECT_NE(error_of(scene_json(image, std::string(R"({"type": "point", "intensity": [1, 1, 1], "radius": )") +
+                                             radius + "}"))
+                  .find("radius"),
+              std::string::npos)
+        << radius;
+  SceneModel saved = bulb;
+  saved.lights.at(0).radius = 0.3;
+  save_scene(saved, (dir_ / "again").string());
+  EXPECT_DOUBLE_EQ(load_scene((dir_ / "again").string()).lights.at(0).radius, 0.3);
+}
+
 }  // namespace
 }  // namespace propcam::inference

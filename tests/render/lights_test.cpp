@@ -194,6 +194,20 @@ TEST(Lights, EnvironmentClampsNegativeNaNAndInfiniteTexels) {
   EXPECT_TRUE(std::isfinite(pdf) && pdf > 0.f);
 }
 
+// The latlong convention other tools must match (a Blender world's truth
+// panoramas, SCENE.json's ibl): the centre column looks along -Z, a quarter
+// across along -X, three quarters across along +X, the seam along +Z.
+TEST(Lights, TheLatlongsCentreColumnIsMinusZAndItsSeamPlusZ) {
+  const auto near = [](const Eigen::Vector3f& a, const Eigen::Vector3f& b) { return (a - b).norm() < 1e-5f; };
+  EXPECT_TRUE(near(EnvironmentLight::uv_to_direction(0.5f, 0.5f), {0, 0, -1}));
+  EXPECT_TRUE(near(EnvironmentLight::uv_to_direction(0.25f, 0.5f), {-1, 0, 0}));
+  EXPECT_TRUE(near(EnvironmentLight::uv_to_direction(0.75f, 0.5f), {1, 0, 0}));
+  EXPECT_TRUE(near(EnvironmentLight::uv_to_direction(0.0f, 0.5f), {0, 0, 1}));
+  EXPECT_TRUE(near(EnvironmentLight::uv_to_direction(0.5f, 0.0f), {0, 1, 0}));
+  EXPECT_NEAR(EnvironmentLight::direction_to_uv({0, 0, -1}).x(), 0.5f, 1e-6f);
+  EXPECT_NEAR(EnvironmentLight::direction_to_uv({1, 0, 0}).x(), 0.75f, 1e-6f);
+}
+
 TEST(Lights, RigOrdersAreaSphereSunThenEnvironment) {
   LightRig rig;
   rig.area_lights.resize(2);

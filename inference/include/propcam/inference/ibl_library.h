@@ -7,8 +7,9 @@
 // HDR: connected bright regions, their directions, solid angles, power shares
 // and a distance class.
 //
-// Panoramas use the EnvironmentLight convention: CV_32FC3 linear RGB, column 0
-// is -Z, columns increase toward +X, row 0 is +Y (world Y up).
+// Panoramas use the EnvironmentLight convention: CV_32FC3 linear RGB, the
+// centre column is -Z, columns increase toward +X (the seam is +Z), row 0 is
+// +Y (world Y up).
 #pragma once
 
 #include <Eigen/Core>

@@ -12,6 +12,7 @@
 #include "propcam/inference/layout.h"
 #include "propcam/inference/orientation_map.h"
 #include "propcam/inference/lighting.h"
+#include "propcam/inference/scene_class_knn.h"
 #include "propcam/inference/scene_model.h"
 #include "propcam/inference/sky.h"
 #include "propcam/inference/support_planes.h"
@@ -39,6 +40,12 @@ struct InferenceOptions {
   LineDetectionOptions lines;
   CameraOptions camera;
   LayoutOptions layout;
+  // Indoor/outdoor: the k-NN references (empty: default_scene_reference_path())
+  // and the name of a panorama whose references are skipped (benches that
+  // score a view of it leave it out; empty: none).
+  std::string scene_references;
+  std::string scene_class_left_out;
+  CombinedSceneClassOptions scene_class;
   GeometryOptions geometry;
   AlbedoOptions albedo;
   LightingOptions lighting;

@@ -26,14 +26,21 @@ struct StageReport {
   nlohmann::json details = nlohmann::json::object();
 };
 
+// A point light's bulb radius when the scene does not give one.
+constexpr double kDefaultPointLightRadiusM = 0.05;
+// Bounds on a point light's radius in a scene file: a bulb, not a room.
+constexpr double kMinPointLightRadiusM = 1e-4, kMaxPointLightRadiusM = 2.0;
+
 struct LightSource {
   enum class Type { Area, Point, Sun, Ibl };
   Type type = Type::Area;
   Eigen::Vector3d position = Eigen::Vector3d::Zero();   // area/point: centre (world)
   Eigen::Vector3d direction = Eigen::Vector3d::Zero();  // sun: toward the light
-  // Linear RGB: radiance for area, point (a 5 cm bulb) and IBL lights (a
-  // scale of the map); for a sun, the irradiance it gives a surface facing it.
+  // Linear RGB: radiance for area, point (a sphere of `radius`) and IBL
+  // lights (a scale of the map); for a sun, the irradiance it gives a
+  // surface facing it.
   Eigen::Vector3d intensity = Eigen::Vector3d::Ones();
+  double radius = kDefaultPointLightRadiusM;  // point: the bulb's radius (m)
   // Area: the quad (world), emitting on the side of edge_u x edge_v.
   Eigen::Vector3d corner = Eigen::Vector3d::Zero(), edge_u = Eigen::Vector3d::Zero(),
                   edge_v = Eigen::Vector3d::Zero();
@@ -78,6 +85,9 @@ struct SceneModel {
   cv::Mat depth;    // CV_32F metres along camera z
   cv::Mat albedo;   // CV_32FC3 linear RGB
   cv::Mat normals;  // CV_32FC3 world unit normals
+  // CV_8U, 255 on the pixels the lighting took for visible light sources
+  // (in memory only: benches score it; the folder does not keep it).
+  cv::Mat light_source_mask;
   std::vector<LightSource> lights;
   std::vector<SupportPlane> planes;
   // Outdoors: the seen facades continued out of the frame, occluders for the

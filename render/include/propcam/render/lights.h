@@ -96,8 +96,11 @@ struct SunLight {
   float pdf(const Eigen::Vector3f& direction) const;
 };
 
-// Equirectangular environment in world coordinates (Y up). Column 0 is the
-// direction -Z, columns increase toward +X (phi = atan2(x, -z)); row 0 is +Y.
+// Equirectangular environment in world coordinates (Y up). The centre column
+// looks along -Z and columns increase toward +X (phi = atan2(x, -z), u =
+// (phi + pi) / 2pi): the column a quarter across looks along -X, three
+// quarters across along +X, and the seam (column 0 and the last) is +Z;
+// row 0 is +Y.
 // Importance sampled in proportion to luminance times sin(theta).
 class EnvironmentLight {
  public:

@@ -32,8 +32,9 @@ inline ViewSpec view_spec(double yaw_deg, double pitch_deg, double horizontal_fo
 // Camera (OpenCV axes, world Y up, centre `camera_height_m` above the origin) for a view.
 PinholeCamera view_camera(const ViewSpec& spec);
 
-// Samples the latlong (CV_32FC3, same convention as EnvironmentLight: column 0
-// is -Z, columns increase toward +X, row 0 is +Y) through `camera`, 2x2
+// Samples the latlong (CV_32FC3, same convention as EnvironmentLight: the
+// centre column is -Z, columns increase toward +X, the seam is +Z, row 0 is
+// +Y) through `camera`, 2x2
 // supersampled with bilinear lookups. Negative and non-finite texels become 0.
 cv::Mat rectilinear_view(const cv::Mat& latlong, const PinholeCamera& camera);
 
