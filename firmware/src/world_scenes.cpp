@@ -155,6 +155,9 @@ WorldScene load_blender_scene(const std::string& folder_name) {
   w.split = meta.value("split", "");
   w.kind = meta.value("kind", "");
   w.exposure = meta.value("exposure_multiplier", 1.0);
+  if (const auto rule = meta.find("spp_rule"); rule != meta.end() && rule->is_object() &&
+                                               rule->contains("predicted_rmse_8bit") && (*rule)["predicted_rmse_8bit"].is_number())
+    w.render_noise_8bit = (*rule)["predicted_rmse_8bit"].get<double>();
   const fs::path photo = image_with_stem(folder, "photo");
   w.photo_display = read_display(photo);
   w.photo_linear = capture::load_photo_linear(photo.string());

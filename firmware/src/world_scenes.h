@@ -8,6 +8,7 @@
 
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
+#include <cmath>
 #include <optional>
 #include <string>
 #include <vector>
@@ -47,6 +48,11 @@ struct WorldScene {
   // Scene-referred linear radiance times this is the photo's linear value
   // before the camera's tone curve (1 for our own world).
   double exposure = 1;
+  // The truth's own render noise: the photo's RMSE in 8-bit levels against a
+  // render at 4x the samples, as the Blender world predicts it from pilot
+  // renders (NaN: unknown; our own world's differences cancel by shared
+  // random streams outside the prop's paths).
+  double render_noise_8bit = std::nan("");
 };
 
 // `propcam synth`-style scenes: rooms seeds 1..rooms, streets 1..streets,

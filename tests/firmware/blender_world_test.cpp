@@ -1,0 +1,80 @@
+// The Blender world for real: Debian's blender renders a scene with our
+// generator script, the bench reads it, and Cycles and our renderer agree on
+// the light units. Skipped (saying why) where blender is not installed;
+// scripts/setup.sh installs it, so CI runs these.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+
+#include "bench_worlds.h"
+#include "cli_run.h"
+#include "world_scenes.h"
+
+namespace propcam::firmware {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+using propcam::test::run_shell;
+
+bool have_blender() { return run_shell("command -v blender >/dev/null 2>&1").exit_code == 0; }
+
+std::string source(const std::string& path) { return std::string(PROPCAM_SOURCE_DIR) + "/" + path; }
+
+fs::path scratch(const std::string& name) {
+  const fs::path p = fs::path(PROPCAM_BINARY_DIR) / "test_blender_world" / name;
+  fs::remove_all(p);
+  fs::create_directories(p.parent_path());
+  return p;
+}
+
+// One small scene, made and rendered by Blender alone, read and scored by the bench.
+TEST(BlenderWorld, AGeneratedSceneLoadsWithItsTruthAndIsScored) {
+  if (!have_blender()) GTEST_SKIP() << "blender is not installed (scripts/setup.sh installs it)";
+  const fs::path dir = scratch("world");
+  // Seed 2: an indoor scene of the tune split.
+  const auto made = run_shell("PROPCAM=" + std::string(PROPCAM_CLI) + " bash " + source("scripts/make_blender_world.sh") +
+                              " --out " + dir.string() + " --count 1 --seed 2 --size 96x72 --spp 16 --max-spp 16 --probe-spp 16 "
+                              "--noise-check 0 --threads 2 2>&1");
+  ASSERT_EQ(made.exit_code, 0) << made.out;
+  const std::vector<WorldScene> scenes = load_blender_world(dir.string(), "");
+  ASSERT_EQ(scenes.size(), 1u);
+  const WorldScene& w = scenes[0];
+  EXPECT_EQ(w.world, "blender");
+  EXPECT_EQ(w.split, "tune");
+  EXPECT_EQ(w.photo_display.size(), cv::Size(96, 72));
+  EXPECT_EQ(w.truth.depth.size(), w.photo_display.size());
+  EXPECT_FALSE(w.truth.lights.empty()) << "every light that lights the scene is listed";
+  EXPECT_GT(cv::countNonZero(w.prop_mask), 0) << "the prop is seen";
+  ASSERT_TRUE(w.true_light);
+  EXPECT_TRUE(w.true_light->vector.allFinite());
+  EXPECT_GT(w.true_light->total, 0.0);
+  // The truth's camera sees the prop's base where placement.json says.
+  Eigen::Vector2d at(w.placement.pixel_u, w.placement.pixel_v);
+  EXPECT_GE(at.x(), 0);
+  EXPECT_LT(at.x(), 96);
+
+  const json row = score_world_estimate(w, w.truth, 0.0, 8);
+  EXPECT_TRUE(row["indoor_right"].get<bool>());
+  EXPECT_NEAR(row["depth"]["abs_rel"].get<double>(), 0.0, 1e-6);
+  ASSERT_TRUE(row["photo"]["rmse"].is_number());
+  EXPECT_GT(row["photo"]["rmse"].get<double>(), 0.0) << "the insertion differs from the photo";
+  EXPECT_TRUE(row["composite"]["rmse"].is_number());
+}
+
+// The conversion from Blender's light units to ours, proved by rendering the
+// same scene with Cycles and with `propcam render` (docs/blender_world.md).
+TEST(BlenderWorld, CyclesAndOurRendererAgreeOnEveryLightType) {
+  if (!have_blender()) GTEST_SKIP() << "blender is not installed (scripts/setup.sh installs it)";
+  const fs::path dir = scratch("units");
+  const auto r = run_shell("PROPCAM=" + std::string(PROPCAM_CLI) + " bash " + source("scripts/blender_units_check.sh") +
+                           " --out " + dir.string() + " --size 64x48 --spp 128 --threads 2 2>&1");
+  EXPECT_EQ(r.exit_code, 0) << r.out;
+  for (const char* light : {"area", "point", "sun", "environment"})
+    EXPECT_NE(r.out.find(light), std::string::npos) << light << " was checked\n" << r.out;
+}
+
+}  // namespace
+}  // namespace propcam::firmware
