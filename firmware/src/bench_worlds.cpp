@@ -83,7 +83,8 @@ cv::Mat composite_display(const WorldScene& w, const inference::SceneModel& scen
 }
 
 json image_scores(const cv::Mat& image, const WorldScene& w, const cv::Mat& region) {
-  return {{"rmse", number_or_null(rmse_over_mask(image, w.insertion_display, region))},
+  const double rmse = cv::countNonZero(region) ? rmse_in_mask(image, w.insertion_display, region) : std::nan("");
+  return {{"rmse", number_or_null(rmse)},
           {"ssim", number_or_null(ssim_in_mask(image, w.insertion_display, region))}};
 }
 
@@ -121,9 +122,14 @@ json at_path(const json& j, std::initializer_list<const char*> keys) {
   return *p;
 }
 
-// The seconds keys that make up a scene's time (the rest are inference's stages).
-bool is_per_scene_total(const std::string& key) {
-  return key == "inference" || key == "composite" || key == "light_probe" || key == "probe_renders";
+// A summary's mean seconds per scene: inference, composite and probes (the
+// other keys are inference's stages, already in "inference").
+double seconds_per_scene(const json& summary) {
+  double total = 0;
+  if (summary.contains("seconds_mean"))
+    for (const auto& [key, v] : summary["seconds_mean"].items())
+      if (key == "inference" || key == "composite" || key == "light_probe" || key == "probe_renders") total += num(v);
+  return total;
 }
 
 struct Row {
@@ -400,10 +406,7 @@ std::string format_worlds_bench(const json& r) {
     out << line;
     for (const auto& [world, w] : row["worlds"].items()) {
       const json& s = w["summary"];
-      double total = 0;
-      if (s.contains("seconds_mean"))
-        for (const auto& [stage, v] : s["seconds_mean"].items())
-          if (is_per_scene_total(stage)) total += num(v);
+      const double total = seconds_per_scene(s);
       std::snprintf(line, sizeof line,
                     "%-9s %6d %7.2f %7.2f %8.2f %7.3f %7.3f %7.3f %8.1f %8.1f %8.4f %8.4f %8.4f %7.2f %7.1f\n",
                     world.c_str(), s.value("scenes", 0), num(at_path(s, {"indoor_accuracy"})),
@@ -457,10 +460,7 @@ void plot_worlds_bench(const json& r, const std::string& dir) {
     std::replace(label.begin(), label.end(), ' ', '_');
     for (const auto& [world, w] : row["worlds"].items()) {
       const json& s = w["summary"];
-      double total = 0;
-      if (s.contains("seconds_mean"))
-        for (const auto& [stage, v] : s["seconds_mean"].items())
-          if (is_per_scene_total(stage)) total += num(v);
+      const double total = seconds_per_scene(s);
       dat << world << " " << total << " " << num(at_path(s, {"composite", "rmse_median"})) << " "
           << num(at_path(s, {"direction_deg_median"})) << " \"" << label << "\"\n";
     }

@@ -163,26 +163,34 @@ inference::IblFeatureInputs ibl_feature_inputs(const cv::Mat& photo_linear, cons
 }  // namespace
 
 IblTrainingSet build_ibl_training_set(const IblTrainingSpec& spec) {
+  // The classifier inference uses (estimate_lighting's default).
+  return build_ibl_training_set_with(spec, inference::InferenceOptions{},
+                                     inference::LightClassifier::load(inference::default_light_classifier_path()));
+}
+
+IblTrainingSet build_ibl_training_set_with(const IblTrainingSpec& spec, const inference::InferenceOptions& options,
+                                           const inference::LightClassifier& classifier,
+                                           const std::set<std::string>& drop_entries) {
   const auto start = std::chrono::steady_clock::now();
   Progress progress(spec.quiet);
   progress.stage("IBL ranker: building the library at width " + std::to_string(spec.library.width));
   const inference::IblLibrary library = inference::build_ibl_library(spec.library);
   IblTrainingSet set;
-  const inference::InferenceOptions options;
-  // The classifier inference uses (estimate_lighting's default).
-  const inference::LightClassifier classifier = inference::LightClassifier::load(inference::default_light_classifier_path());
   for (size_t e = 0; e < library.entries.size(); ++e) {
     const auto& entry = library.entries[e];
+    if (drop_entries.count(entry.name)) continue;
     progress.stage("IBL ranker: views of " + entry.name);
     inference::IblRankerEntry re;
     re.name = entry.name;
     re.kind = entry.kind;
     re.lights = entry.lights;
     re.sh = inference::project_radiance_sh(entry.latlong);
+    const int index = static_cast<int>(set.ranker.entries.size());
     set.ranker.entries.push_back(std::move(re));
+    // Seeded by the index in the whole library: dropping an entry leaves the others' views as they were.
     for (const auto& v : view_specs(static_cast<int>(e), spec)) {
       inference::IblRankerView rv;
-      rv.entry = static_cast<int>(e);
+      rv.entry = index;
       rv.yaw_deg = v.yaw_deg;
       rv.pitch_deg = v.pitch_deg;
       rv.fov_deg = v.horizontal_fov_deg;

@@ -7,12 +7,14 @@
 #include <CLI/CLI.hpp>
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <string>
 #include <vector>
 
 #include "propcam/inference/ibl_library.h"
 #include "propcam/inference/ibl_ranking.h"
 #include "propcam/inference/infer.h"
+#include "propcam/inference/light_classifier.h"
 
 namespace propcam::firmware {
 
@@ -46,6 +48,14 @@ struct IblTrainingSet {
   double seconds = 0;
 };
 IblTrainingSet build_ibl_training_set(const IblTrainingSpec& spec);
+// The same with other models (a leave-one-out run's): the views' features
+// from `options` (e.g. scene_class_left_out) and `classifier`; the library
+// entries named in `drop_entries` are left out (the others' views are
+// sampled as there, so with no drops and the committed models it is the
+// same set).
+IblTrainingSet build_ibl_training_set_with(const IblTrainingSpec& spec, const inference::InferenceOptions& options,
+                                           const inference::LightClassifier& classifier,
+                                           const std::set<std::string>& drop_entries = {});
 
 // Trains on the queries of all entries but `held_out` (-1: none); candidates
 // are views of other entries of the query's kind, never of `held_out`.

@@ -412,73 +412,6 @@ IblTrainingSet without_entries(const IblTrainingSet& set, const std::set<std::st
   return out;
 }
 
-// build_ibl_training_set (ibl_training.cpp) with a leave-one-out run's
-// models: the views' features from `options` (scene-class references without
-// the panorama) and `classifier` (trained without it); entries named in
-// `drop` get no views. The views are sampled as there (seeded by the entry's
-// index in the full library), so without drops and with the committed
-// models it is the same set.
-IblTrainingSet build_training_set_with(const IblTrainingSpec& spec, const inference::InferenceOptions& options,
-                                       const inference::LightClassifier& classifier, const std::set<std::string>& drop,
-                                       Progress& progress) {
-  const auto start = std::chrono::steady_clock::now();
-  const inference::IblLibrary library = inference::build_ibl_library(spec.library);
-  IblTrainingSet set;
-  for (size_t e = 0; e < library.entries.size(); ++e) {
-    const auto& entry = library.entries[e];
-    if (drop.count(entry.name)) continue;
-    progress.stage("IBL ranker (leave one out): views of " + entry.name);
-    inference::IblRankerEntry re;
-    re.name = entry.name;
-    re.kind = entry.kind;
-    re.lights = entry.lights;
-    re.sh = inference::project_radiance_sh(entry.latlong);
-    const int index = static_cast<int>(set.ranker.entries.size());
-    set.ranker.entries.push_back(std::move(re));
-    std::mt19937_64 rng(spec.seed * 1000003ull + static_cast<uint64_t>(e));
-    std::uniform_real_distribution<double> unit(0.0, 1.0);
-    for (int i = 0; i < spec.views_per_entry; ++i) {
-      render::ViewSpec v;
-      v.width = spec.width;
-      v.height = spec.height;
-      v.yaw_deg = 360.0 * (i + unit(rng)) / spec.views_per_entry;
-      v.pitch_deg = spec.max_abs_pitch_deg * (2 * unit(rng) - 1);
-      v.horizontal_fov_deg = spec.min_fov_deg + (spec.max_fov_deg - spec.min_fov_deg) * unit(rng);
-      cv::Mat linear = render::rectilinear_view(entry.latlong, render::view_camera(v));
-      render::auto_expose(linear);
-      const cv::Mat photo = capture::srgb8_to_linear(capture::linear_to_srgb8(linear));
-      inference::InferenceOptions o = options;
-      o.geometry.solve = false;
-      const inference::GeometryEstimate g = inference::infer_geometry(photo, o);
-      inference::IblFeatureInputs in;
-      in.photo_linear = photo;
-      in.camera = g.pinhole;
-      in.orientation = g.orientation;
-      in.sky_mask = g.sky.mask;
-      in.light_mask = classifier.source_mask(photo, options.lighting.classifier);
-      inference::IblRankerView rv;
-      rv.entry = index;
-      rv.yaw_deg = v.yaw_deg;
-      rv.pitch_deg = v.pitch_deg;
-      rv.fov_deg = v.horizontal_fov_deg;
-      rv.heading = inference::heading_frame(render::view_camera(v).R_world_from_cam);
-      rv.features = inference::ibl_view_features(in);
-      set.ranker.views.push_back(std::move(rv));
-    }
-  }
-  const auto& views = set.ranker.views;
-  const size_t n = views.size();
-  set.similarity.assign(n, std::vector<inference::IblSimilarity>(n, inference::IblSimilarity::Zero()));
-  set.distance = Eigen::MatrixXd::Zero(n, n);
-  for (size_t q = 0; q < n; ++q)
-    for (size_t j = 0; j < n; ++j) {
-      set.similarity[q][j] = inference::ibl_similarity(views[q].features, views[j].features);
-      set.distance(q, j) = inference::ibl_render_distance(set.ranker.entries[views[q].entry].sh, views[q].heading,
-                                                          set.ranker.entries[views[j].entry].sh, views[j].heading);
-    }
-  set.seconds = seconds_since(start);
-  return set;
-}
 
 // ---------------------------------------------------------------------------
 // The probe.
@@ -625,13 +558,6 @@ json moments_json(const LightMoments& m) {
 
 // ---------------------------------------------------------------------------
 
-IblTrainingSet build_ibl_training_set_with(const IblTrainingSpec& spec, const inference::InferenceOptions& options,
-                                           const inference::LightClassifier& classifier,
-                                           const std::vector<std::string>& drop_entries) {
-  Progress progress(spec.quiet);
-  return build_training_set_with(spec, options, classifier, std::set<std::string>(drop_entries.begin(), drop_entries.end()),
-                                 progress);
-}
 
 std::vector<std::string> panorama_world_names() {
   std::vector<std::string> out;
@@ -796,7 +722,7 @@ inference::InferenceOptions leave_one_out_options(const PanoramaView& view, cons
         progress.stage("leave one out: the IBL ranker's training set without " + view.group);
         const inference::LightClassifier classifier = inference::LightClassifier::load(
             base.lighting.light_classifier.empty() ? inference::default_light_classifier_path() : base.lighting.light_classifier);
-        reduced = build_training_set_with(spec, base, classifier, drop, progress);
+        reduced = build_ibl_training_set_with(spec, base, classifier, drop);
         part["training_set"] = "strict: features from the leave-one-out classifier and scene-class references";
         part["training_set_seconds"] = reduced.seconds;
       } else {

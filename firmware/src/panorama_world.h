@@ -40,13 +40,6 @@ LightTrainingSpec committed_light_training_spec(const std::string& pmndrs_dir);
 // of blender-data's 8, the 18 pmndrs with their labels, procedural skies and rooms).
 IblTrainingSpec committed_ibl_training_spec(const std::string& pmndrs_dir);
 
-// build_ibl_training_set with other models: the views' features from
-// `options` (e.g. scene_class_left_out) and `classifier`; the library
-// entries named in `drop_entries` get no views (the others' views are
-// sampled as there, so with no drops and the committed models it is the same set).
-IblTrainingSet build_ibl_training_set_with(const IblTrainingSpec& spec, const inference::InferenceOptions& options,
-                                           const inference::LightClassifier& classifier,
-                                           const std::vector<std::string>& drop_entries = {});
 
 struct PanoramaWorldOptions {
   // Names (blender-data: "courtyard"; pmndrs: "pmndrs_city" or "pmndrs/city")

@@ -51,20 +51,6 @@ double ssim_in_mask(const cv::Mat& a, const cv::Mat& b, const cv::Mat& mask) {
   return cv::mean(map, m)[0];
 }
 
-double rmse_over_mask(const cv::Mat& a, const cv::Mat& b, const cv::Mat& mask) {
-  const cv::Mat m = mask_or_all(mask, a.size());
-  double sum = 0;
-  long n = 0;
-  for (int y = 0; y < a.rows; ++y)
-    for (int x = 0; x < a.cols; ++x) {
-      if (!m.at<uint8_t>(y, x)) continue;
-      const cv::Vec3f d = a.at<cv::Vec3f>(y, x) - b.at<cv::Vec3f>(y, x);
-      const double e = d.dot(d) / 3.0;
-      if (std::isfinite(e)) sum += e, ++n;
-    }
-  return n ? std::sqrt(sum / n) : std::nan("");
-}
-
 double depth_abs_rel_median_scaled(const cv::Mat& estimate, const cv::Mat& truth, const cv::Mat& valid,
                                    double max_depth_m) {
   if (estimate.empty() || truth.empty() || estimate.size() != truth.size()) return std::nan("");

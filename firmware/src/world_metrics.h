@@ -18,9 +18,6 @@ namespace propcam::firmware {
 // all). NaN for an empty mask.
 double ssim_in_mask(const cv::Mat& a, const cv::Mat& b, const cv::Mat& mask);
 
-// RMSE over the three channels and the pixels of `mask`; NaN for an empty mask.
-double rmse_over_mask(const cv::Mat& a, const cv::Mat& b, const cv::Mat& mask);
-
 // Depth error as monocular depth is scored: the estimate scaled by the
 // median of truth/estimate over `valid` (CV_8U; pixels where both are
 // finite, positive and below `max_depth_m`), then mean |s*est - true| / true.

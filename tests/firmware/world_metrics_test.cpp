@@ -31,16 +31,6 @@ TEST(WorldMetrics, SsimIsOneForTheSameImageAndFallsWithNoise) {
   EXPECT_TRUE(std::isnan(ssim_in_mask(a, a, cv::Mat::zeros(a.size(), CV_8U)))) << "an empty region has no score";
 }
 
-TEST(WorldMetrics, RmseCountsOnlyTheMask) {
-  const cv::Mat a(4, 4, CV_32FC3, cv::Scalar(0.5, 0.5, 0.5));
-  cv::Mat b = a.clone();
-  b.at<cv::Vec3f>(0, 0) = cv::Vec3f(1.5f, 1.5f, 1.5f);
-  cv::Mat mask = cv::Mat::zeros(4, 4, CV_8U);
-  mask.at<uint8_t>(0, 0) = 255;
-  mask.at<uint8_t>(3, 3) = 255;
-  EXPECT_NEAR(rmse_over_mask(a, b, mask), std::sqrt(0.5), 1e-6);
-}
-
 TEST(WorldMetrics, DepthAbsRelIgnoresScaleAndSeesShapeErrors) {
   cv::Mat truth(10, 10, CV_32F), est(10, 10, CV_32F);
   for (int i = 0; i < 100; ++i) truth.at<float>(i) = 1.0f + 0.05f * i;
