@@ -346,14 +346,6 @@ json run_worlds_bench(const WorldsBenchOptions& o) {
     if (o.max_scenes > 0 && static_cast<int>(blender.size()) > o.max_scenes) blender.resize(o.max_scenes);
     for (auto& s : blender) scenes.push_back(std::move(s));
   }
-  if (o.max_scenes > 0 && wants("own")) {
-    // Keep the own world's rooms and streets both: at most max_scenes of it.
-    int own = 0;
-    scenes.erase(std::remove_if(scenes.begin(), scenes.end(),
-                                [&](const WorldScene& s) { return s.world == "own" && ++own > o.max_scenes; }),
-                 scenes.end());
-  }
-
   json result_rows = json::array();
   // The default inference of each scene, kept for the rows that change only the composite.
   std::vector<std::pair<inference::SceneModel, double>> default_estimates(scenes.size());
@@ -485,7 +477,7 @@ CLI::App* add_bench_worlds_command(CLI::App& bench, WorldsBenchArgs& a) {
   cmd->add_option("--split", a.options.split, "Blender world split: tune | held | all")
       ->check(CLI::IsMember({"tune", "held", "all"}));
   cmd->add_option("--spp", a.options.spp, "Composite samples per pixel")->check(CLI::Range(1, 4096));
-  cmd->add_option("--max-scenes", a.options.max_scenes, "At most this many scenes per world (0: all)")->check(CLI::NonNegativeNumber);
+  cmd->add_option("--max-scenes", a.options.max_scenes, "Blender world: at most this many scenes (0: all)")->check(CLI::NonNegativeNumber);
   cmd->add_option("--rooms", a.options.own.rooms, "Own world: synthetic rooms (seeds 1..N)")->check(CLI::NonNegativeNumber);
   cmd->add_option("--streets", a.options.own.streets, "Own world: synthetic streets (seeds 1..N)")->check(CLI::NonNegativeNumber);
   cmd->add_option("--own-size", a.own_size, "Own world: photo size WxH");

@@ -26,7 +26,7 @@ struct WorldsBenchOptions {
   OwnWorldOptions own;
   PanoramaWorldOptions panorama;
   int spp = 64;                 // composite samples per pixel
-  int max_scenes = 0;           // per world (0: all)
+  int max_scenes = 0;           // of the Blender world (0: all); our own world has rooms and streets
   std::vector<std::string> sweeps;  // extra rows beside the default (see --sweeps)
   std::string plot_dir;
   bool quiet = false;

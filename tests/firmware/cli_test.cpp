@@ -268,6 +268,31 @@ TEST(Cli, BenchLightingReportsErrorsAgainstSecondsBesideTheBaseline) {
   EXPECT_EQ(propcam("bench lighting --sweeps nonsense").exit_code, 2);
 }
 
+TEST(Cli, BenchWorldsScoresOurOwnWorldAndSaysHowToMakeTheBlenderOne) {
+  const std::string plots = temp("worlds_plots");
+  const CliRun r = propcam("bench worlds --worlds own --rooms 1 --streets 1 --own-size 96x72 --own-spp 8 --spp 8 "
+                           "--sweeps spp --json --plot " + plots);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const json b = json_tail(r.out);
+  ASSERT_EQ(b["rows"].size(), 3u);  // default, composites at 16 and 256 spp
+  for (const auto& row : b["rows"]) {
+    const json& own = row["worlds"]["own"];
+    EXPECT_EQ(own["summary"]["scenes"], 2);
+    ASSERT_EQ(own["scenes"].size(), 2u);
+    for (const auto& scene : own["scenes"]) {
+      EXPECT_TRUE(scene["photo"]["rmse"].is_number()) << scene.dump();
+      EXPECT_TRUE(scene["composite"]["ssim"].is_number()) << scene.dump();
+      EXPECT_TRUE(scene["seconds"].contains("inference"));
+    }
+    EXPECT_TRUE(own["summary"]["indoor_accuracy"].is_number());
+  }
+  EXPECT_GT(fs::file_size(plots + "/worlds.png"), 1000u);
+  EXPECT_EQ(propcam("bench worlds --worlds nonsense").exit_code, 2);
+  const CliRun missing = propcam("bench worlds --worlds blender --dir " + temp("no_world"));
+  EXPECT_EQ(missing.exit_code, 1);
+  EXPECT_NE(missing.out.find("make_blender_world.sh"), std::string::npos) << missing.out;
+}
+
 TEST(Cli, TrainLightClassifierThenBenchLights) {
   const std::string model = temp("light_model") + "/lights.yml.gz";
   const CliRun trained =
