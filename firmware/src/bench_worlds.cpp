@@ -136,6 +136,7 @@ struct Row {
   std::string sweep, label;
   std::function<void(inference::InferenceOptions&)> apply;  // null: the default inference
   int spp = 0;                                              // 0: the bench's
+  bool truth = false;  // the world's truth stands in for the inference (own and Blender worlds)
 };
 
 std::vector<Row> rows_for(const std::vector<std::string>& sweeps) {
@@ -156,6 +157,9 @@ std::vector<Row> rows_for(const std::vector<std::string>& sweeps) {
     out.push_back({"geometry", "box layout only (no depth solve)", [](inference::InferenceOptions& o) {
                      o.geometry.solve = false;
                    }});
+  // A diagnosis, not a knob: what our compositor and renderer reach with
+  // the true camera, depth, albedo and lights (no device has them).
+  if (wanted("oracle")) out.push_back({"oracle", "the true scene (oracle)", nullptr, 0, true});
   return out;
 }
 
@@ -356,6 +360,10 @@ json run_worlds_bench(const WorldsBenchOptions& o) {
       const WorldScene& s = scenes[i];
       progress.stage("bench worlds: " + row.label + ", " + s.world + " " + s.name);
       const int spp = row.spp > 0 ? row.spp : o.spp;
+      if (row.truth) {
+        per_world[s.world].push_back(score_world_estimate(s, s.truth, 0.0, spp));
+        continue;
+      }
       if (row.apply) {
         inference::InferenceOptions options;
         row.apply(options);
@@ -371,7 +379,7 @@ json run_worlds_bench(const WorldsBenchOptions& o) {
       per_world[s.world].push_back(score_world_estimate(s, estimate, seconds, spp));
     }
     for (auto& [world, rows] : per_world) worlds[world] = {{"summary", summarise_world(rows)}, {"scenes", rows}};
-    if (wants("panorama") && (row.apply || row.sweep == "default")) {
+    if (wants("panorama") && !row.truth && (row.apply || row.sweep == "default")) {
       progress.stage("bench worlds: " + row.label + ", panorama views");
       PanoramaWorldOptions p = o.panorama;
       p.quiet = o.quiet;
@@ -484,7 +492,7 @@ CLI::App* add_bench_worlds_command(CLI::App& bench, WorldsBenchArgs& a) {
   cmd->add_option("--own-spp", a.options.own.spp, "Own world: samples per pixel of photos and insertions")->check(CLI::Range(1, 4096));
   cmd->add_option("--panoramas", a.options.panorama.panoramas, "Panorama world: names or EXR files (default: all 26)")->delimiter(',');
   cmd->add_option("--views", a.options.panorama.views_per_panorama, "Panorama world: views per panorama")->check(CLI::PositiveNumber);
-  cmd->add_option("--sweeps", a.sweeps, "Extra rows: comma-separated subset of spp,albedo,fit,geometry");
+  cmd->add_option("--sweeps", a.sweeps, "Extra rows: comma-separated subset of spp,albedo,fit,geometry,oracle (the true scene)");
   cmd->add_option("--plot", a.options.plot_dir, "Write worlds.png (gnuplot) to this folder");
   cmd->add_flag("--json", a.json_out, "Machine-readable output");
   return cmd;
@@ -493,7 +501,7 @@ CLI::App* add_bench_worlds_command(CLI::App& bench, WorldsBenchArgs& a) {
 int run_bench_worlds_command(WorldsBenchArgs a) {
   a.options.worlds = parse_sweeps(a.worlds, {"own", "blender", "panorama"});
   if (a.options.worlds.empty()) throw std::invalid_argument("--worlds names no world");
-  a.options.sweeps = parse_sweeps(a.sweeps, {"spp", "albedo", "fit", "geometry"});
+  a.options.sweeps = parse_sweeps(a.sweeps, {"spp", "albedo", "fit", "geometry", "oracle"});
   parse_bench_size(a.own_size, 16, a.options.own.width, a.options.own.height);
   a.options.quiet = a.json_out;
   const json result = run_worlds_bench(a.options);

@@ -83,6 +83,15 @@ SyntheticShot shoot_synthetic_street(const render::SyntheticStreetSpec& spec, co
     l.intensity = sun.irradiance.cast<double>();
     shot.truth.lights.push_back(l);
   }
+  // The sky: a light of the scene like the sun (a truth folder without it
+  // renders the street lit by the sun alone).
+  if (street.lights.environment && street.lights.environment->valid()) {
+    inference::LightSource sky;
+    sky.type = inference::LightSource::Type::Ibl;
+    sky.environment = street.lights.environment->image().clone();
+    sky.intensity = street.lights.environment->scale().cast<double>();
+    shot.truth.lights.push_back(sky);
+  }
   return shot;
 }
 

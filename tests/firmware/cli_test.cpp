@@ -271,10 +271,11 @@ TEST(Cli, BenchLightingReportsErrorsAgainstSecondsBesideTheBaseline) {
 TEST(Cli, BenchWorldsScoresOurOwnWorldAndSaysHowToMakeTheBlenderOne) {
   const std::string plots = temp("worlds_plots");
   const CliRun r = propcam("bench worlds --worlds own --rooms 1 --streets 1 --own-size 96x72 --own-spp 8 --spp 8 "
-                           "--sweeps spp --json --plot " + plots);
+                           "--sweeps spp,oracle --json --plot " + plots);
   ASSERT_EQ(r.exit_code, 0) << r.out;
   const json b = json_tail(r.out);
-  ASSERT_EQ(b["rows"].size(), 3u);  // default, composites at 16 and 256 spp
+  ASSERT_EQ(b["rows"].size(), 4u);  // default, composites at 16 and 256 spp, the true scene
+  EXPECT_EQ(b["rows"][3]["sweep"], "oracle");
   for (const auto& row : b["rows"]) {
     const json& own = row["worlds"]["own"];
     EXPECT_EQ(own["summary"]["scenes"], 2);

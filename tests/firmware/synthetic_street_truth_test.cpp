@@ -35,9 +35,11 @@ TEST(SyntheticStreetTruth, SkyDepthGroundPlaneAndSun) {
   EXPECT_GT(sky, t.width * t.height / 20);
   ASSERT_FALSE(t.planes.empty());
   EXPECT_NEAR(t.planes[0].normal.y(), 1.0, 1e-9);
-  ASSERT_EQ(t.lights.size(), 1u);
+  ASSERT_EQ(t.lights.size(), 2u) << "the sun and the sky";
   EXPECT_EQ(t.lights[0].type, inference::LightSource::Type::Sun);
   EXPECT_GT(t.lights[0].direction.y(), std::sin(10 * 3.14159265 / 180));
+  EXPECT_EQ(t.lights[1].type, inference::LightSource::Type::Ibl);
+  EXPECT_FALSE(t.lights[1].environment.empty());
   EXPECT_NEAR(shot.room.free_floor_point.y(), 0.f, 1e-6);
   EXPECT_FALSE(shot.photo_linear.empty());
 }
