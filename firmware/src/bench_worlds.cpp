@@ -157,9 +157,11 @@ std::vector<Row> rows_for(const std::vector<std::string>& sweeps) {
     out.push_back({"geometry", "box layout only (no depth solve)", [](inference::InferenceOptions& o) {
                      o.geometry.solve = false;
                    }});
-  // A diagnosis, not a knob: what our compositor and renderer reach with
-  // the true camera, depth, albedo and lights (no device has them).
-  if (wanted("oracle")) out.push_back({"oracle", "the true scene (oracle)", nullptr, 0, true});
+  // A diagnosis, not a knob: the truth as a scene model holds it (true
+  // camera, depth, albedo, lights and emitters; nothing out of the frame)
+  // through our compositor and renderer. Where it falls short of the photo,
+  // the scene model cannot carry the scene's light, whatever the inference.
+  if (wanted("oracle")) out.push_back({"oracle", "the truth as a scene model (oracle)", nullptr, 0, true});
   return out;
 }
 
@@ -361,7 +363,9 @@ json run_worlds_bench(const WorldsBenchOptions& o) {
       progress.stage("bench worlds: " + row.label + ", " + s.world + " " + s.name);
       const int spp = row.spp > 0 ? row.spp : o.spp;
       if (row.truth) {
-        per_world[s.world].push_back(score_world_estimate(s, s.truth, 0.0, spp));
+        inference::SceneModel truth = s.truth;
+        truth.light_source_mask = s.emitters;
+        per_world[s.world].push_back(score_world_estimate(s, truth, 0.0, spp));
         continue;
       }
       if (row.apply) {

@@ -162,6 +162,9 @@ WorldScene load_blender_scene(const std::string& folder_name) {
   w.photo_display = read_display(photo);
   w.photo_linear = capture::load_photo_linear(photo.string());
   w.truth = inference::load_scene((folder / "truth").string());
+  // The truth folder's lights are in Blender's units (scripts/blender_units_check.sh);
+  // a scene model's are the photo's linear values, which the exposure scaled.
+  for (inference::LightSource& light : w.truth.lights) light.intensity *= w.exposure;
   if (w.truth.width != w.photo_display.cols || w.truth.height != w.photo_display.rows)
     throw std::runtime_error(folder.string() + ": the truth's image size differs from the photo's");
   w.true_camera = w.truth.camera();

@@ -10,6 +10,7 @@
 
 #include "bench_worlds.h"
 #include "cli_run.h"
+#include "propcam/inference/scene_model.h"
 #include "world_scenes.h"
 
 namespace propcam::firmware {
@@ -47,6 +48,12 @@ TEST(BlenderWorld, AGeneratedSceneLoadsWithItsTruthAndIsScored) {
   EXPECT_EQ(w.photo_display.size(), cv::Size(96, 72));
   EXPECT_EQ(w.truth.depth.size(), w.photo_display.size());
   EXPECT_FALSE(w.truth.lights.empty()) << "every light that lights the scene is listed";
+  // The truth folder's lights are in Blender's units; the scene model's in
+  // the photo's, which the exposure scaled.
+  const inference::SceneModel in_blender_units = inference::load_scene((dir / "scene_2" / "truth").string());
+  ASSERT_EQ(in_blender_units.lights.size(), w.truth.lights.size());
+  EXPECT_GT(w.exposure, 0.0);
+  EXPECT_TRUE(w.truth.lights[0].intensity.isApprox(in_blender_units.lights[0].intensity * w.exposure, 1e-9));
   EXPECT_GT(cv::countNonZero(w.prop_mask), 0) << "the prop is seen";
   ASSERT_TRUE(w.true_light);
   EXPECT_TRUE(w.true_light->vector.allFinite());
