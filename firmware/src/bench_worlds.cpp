@@ -18,6 +18,7 @@
 #include "propcam/inference/infer.h"
 #include "propcam/inference/lighting.h"
 #include "propcam/render/depth_mesh.h"
+#include "scene_reference_builder.h"
 #include "world_metrics.h"
 
 namespace propcam::firmware {
@@ -165,11 +166,19 @@ std::vector<Row> rows_for(const std::vector<std::string>& sweeps) {
   return out;
 }
 
+// A Blender-world scene of the tune split may be among the scene-class
+// references (build-scene-refs --blender-world): leave its own photo out.
+inference::InferenceOptions options_for(const WorldScene& w, const inference::InferenceOptions& given) {
+  inference::InferenceOptions options = given;
+  if (w.world == "blender") options.scene_class_left_out = blender_scene_group(w.name);
+  return options;
+}
+
 }  // namespace
 
 json score_world_scene(const WorldScene& w, const inference::InferenceOptions& options, int spp) {
   const auto start = Clock::now();
-  const inference::SceneModel est = inference::infer_scene(w.photo_linear, options);
+  const inference::SceneModel est = inference::infer_scene(w.photo_linear, options_for(w, options));
   return score_world_estimate(w, est, seconds_since(start), spp);
 }
 
@@ -377,7 +386,8 @@ json run_worlds_bench(const WorldsBenchOptions& o) {
       auto& [estimate, seconds] = default_estimates[i];
       if (estimate.width == 0) {
         const auto start = Clock::now();
-        estimate = inference::infer_scene(s.photo_linear, inference::InferenceOptions{});
+        const inference::InferenceOptions defaults;
+        estimate = inference::infer_scene(s.photo_linear, options_for(s, defaults));
         seconds = seconds_since(start);
       }
       per_world[s.world].push_back(score_world_estimate(s, estimate, seconds, spp));

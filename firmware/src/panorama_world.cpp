@@ -27,6 +27,7 @@
 #include "propcam/render/panorama.h"
 #include "propcam/render/path_tracer.h"
 #include "real_views.h"
+#include "scene_reference_builder.h"
 #include "world_metrics.h"
 
 namespace propcam::firmware {
@@ -48,32 +49,8 @@ double luminance(const cv::Vec3f& c) { return 0.2126 * c[0] + 0.7152 * c[1] + 0.
 // The catalogue: the 26 panoramas, their labels and where each trained model
 // met them.
 
-// blender-data's eight (labels: ibl_library.cpp, scene_reference_builder.cpp).
-const std::vector<std::pair<std::string, bool>>& blender_list() {
-  static const std::vector<std::pair<std::string, bool>> list = {
-      {"city", false},     {"courtyard", false}, {"forest", false}, {"interior", true},
-      {"night", false},    {"studio", true},     {"sunrise", false}, {"sunset", false}};
-  return list;
-}
-
-// The eighteen of @pmndrs/assets (labels: scripts/train_ibl_ranker.sh).
-const std::vector<std::pair<std::string, bool>>& pmndrs_list() {
-  static const std::vector<std::pair<std::string, bool>> list = {
-      {"apartment", true}, {"bridge", true},   {"esplanade", true}, {"hall", true},    {"lab", true},
-      {"lobby", true},     {"studio", true},   {"warehouse", true}, {"workshop", true}, {"city", false},
-      {"dawn", false},     {"forest", false},  {"night", false},    {"park", false},   {"sky", false},
-      {"sunrise", false},  {"sunset", false},  {"venice", false}};
-  return list;
-}
-
-// Panoramas that are one photograph in both sources: pmndrs' "sunrise" is
-// blender-data's "sunrise" (a different file and resolution, same scene and
-// yaw). Found by correlating high-passed log luminance over all yaw shifts at
-// 128x64: this pair 0.91, every other pair of the 26 at most 0.55.
-const std::map<std::string, std::string>& duplicate_of() {
-  static const std::map<std::string, std::string> d = {{"pmndrs_sunrise", "sunrise"}};
-  return d;
-}
+// The catalogue (blender_panoramas, pmndrs_panoramas, panorama_group) is
+// scene_reference_builder.h's: the references and this world agree on groups.
 
 struct Panorama {
   std::string name;   // "courtyard", "pmndrs_city", or a file's stem
@@ -87,11 +64,6 @@ std::string default_pmndrs_dir() { return std::string(PROPCAM_SOURCE_DIR) + "/bu
 
 std::string pmndrs_dir_of(const PanoramaWorldOptions& o) { return o.pmndrs_dir.empty() ? default_pmndrs_dir() : o.pmndrs_dir; }
 
-std::string group_of(const std::string& name) {
-  const auto it = duplicate_of().find(name);
-  return it == duplicate_of().end() ? name : it->second;
-}
-
 bool same_dir(const fs::path& a, const fs::path& b) {
   std::error_code ec;
   if (fs::exists(a, ec) && fs::exists(b, ec)) return fs::equivalent(a, b, ec);
@@ -104,7 +76,7 @@ Panorama blender_panorama(const std::string& name, bool indoor) {
   p.file = panorama_path(name);
   p.indoor = indoor;
   p.blender = true;
-  p.group = group_of(name);
+  p.group = panorama_group(name);
   return p;
 }
 
@@ -114,7 +86,7 @@ Panorama pmndrs_panorama(const std::string& stem, bool indoor, const std::string
   p.file = (fs::path(dir) / (stem + ".exr")).string();
   p.indoor = indoor;
   p.pmndrs = true;
-  p.group = group_of(p.name);
+  p.group = panorama_group(p.name);
   return p;
 }
 
@@ -135,11 +107,11 @@ Panorama resolve_panorama(const std::string& spec, const std::string& pmndrs_dir
     for (const char* prefix : {"pmndrs_", "pmndrs/"})
       if (stem.rfind(prefix, 0) == 0) stem = stem.substr(7), pm = true;
     if (pm) {
-      for (const auto& [n, indoor] : pmndrs_list())
+      for (const auto& [n, indoor] : pmndrs_panoramas())
         if (n == stem) return pmndrs_panorama(n, indoor, pmndrs_dir);
       throw std::invalid_argument("no pmndrs panorama '" + stem + "' (apartment, bridge, ... venice)");
     }
-    for (const auto& [n, indoor] : blender_list())
+    for (const auto& [n, indoor] : blender_panoramas())
       if (n == stem) return blender_panorama(n, indoor);
     throw std::invalid_argument("no panorama '" + s + "': a blender-data name (city, courtyard, forest, interior, night, studio, "
                                 "sunrise, sunset), pmndrs_<name>, or an EXR path");
@@ -147,10 +119,10 @@ Panorama resolve_panorama(const std::string& spec, const std::string& pmndrs_dir
   const fs::path file(s);
   const std::string stem = file.stem().string();
   if (same_dir(file.parent_path(), pmndrs_dir))
-    for (const auto& [n, indoor] : pmndrs_list())
+    for (const auto& [n, indoor] : pmndrs_panoramas())
       if (n == stem) return pmndrs_panorama(n, indoor, pmndrs_dir);
   if (same_dir(file.parent_path(), kBlenderWorldDir))
-    for (const auto& [n, indoor] : blender_list())
+    for (const auto& [n, indoor] : blender_panoramas())
       if (n == stem) return blender_panorama(n, indoor);
   Panorama p;  // a panorama no model has seen
   p.name = stem;
@@ -162,8 +134,8 @@ Panorama resolve_panorama(const std::string& spec, const std::string& pmndrs_dir
 
 std::vector<Panorama> all_panoramas(const std::string& pmndrs_dir) {
   std::vector<Panorama> out;
-  for (const auto& [n, indoor] : blender_list()) out.push_back(blender_panorama(n, indoor));
-  for (const auto& [n, indoor] : pmndrs_list()) out.push_back(pmndrs_panorama(n, indoor, pmndrs_dir));
+  for (const auto& [n, indoor] : blender_panoramas()) out.push_back(blender_panorama(n, indoor));
+  for (const auto& [n, indoor] : pmndrs_panoramas()) out.push_back(pmndrs_panorama(n, indoor, pmndrs_dir));
   return out;
 }
 
@@ -561,15 +533,15 @@ json moments_json(const LightMoments& m) {
 
 std::vector<std::string> panorama_world_names() {
   std::vector<std::string> out;
-  for (const auto& [n, indoor] : blender_list()) out.push_back(n);
-  for (const auto& [n, indoor] : pmndrs_list()) out.push_back("pmndrs_" + n);
+  for (const auto& [n, indoor] : blender_panoramas()) out.push_back(n);
+  for (const auto& [n, indoor] : pmndrs_panoramas()) out.push_back("pmndrs_" + n);
   return out;
 }
 
 LightTrainingSpec committed_light_training_spec(const std::string& pmndrs_dir) {
   LightTrainingSpec spec;  // scripts/train_light_classifier.sh: the defaults, all 26 panoramas
   spec.panoramas = default_training_panoramas();
-  for (const auto& [n, indoor] : pmndrs_list()) spec.panoramas.push_back((fs::path(pmndrs_dir) / (n + ".exr")).string());
+  for (const auto& [n, indoor] : pmndrs_panoramas()) spec.panoramas.push_back((fs::path(pmndrs_dir) / (n + ".exr")).string());
   // The script lists "$extra"/*.exr: the shell's sorted order, not the table's.
   std::sort(spec.panoramas.begin() + static_cast<long>(default_training_panoramas().size()), spec.panoramas.end());
   spec.quiet = true;
@@ -579,7 +551,7 @@ LightTrainingSpec committed_light_training_spec(const std::string& pmndrs_dir) {
 IblTrainingSpec committed_ibl_training_spec(const std::string& pmndrs_dir) {
   IblTrainingSpec spec;  // scripts/train_ibl_ranker.sh: indoor ones first, then outdoor, each in its list's order
   for (bool indoor : {true, false})
-    for (const auto& [n, in] : pmndrs_list())
+    for (const auto& [n, in] : pmndrs_panoramas())
       if (in == indoor)
         spec.library.extra_panoramas.push_back(
             {(fs::path(pmndrs_dir) / (n + ".exr")).string(), indoor ? inference::SceneKind::Indoor : inference::SceneKind::Outdoor});
@@ -648,13 +620,10 @@ inference::InferenceOptions leave_one_out_options(const PanoramaView& view, cons
   const fs::path dir = cache / view.group;
   Progress progress(o.quiet);
 
-  // Scene-class references: built from blender-data views only
-  // (scene_reference_builder.cpp), grouped by blender-data name.
-  std::string refs_group;
-  for (const auto& m : members)
-    if (m.blender) refs_group = m.name;
-  base.scene_class_left_out = refs_group;
-  r["scene_class_left_out"] = refs_group.empty() ? json("(not among the references)") : json(refs_group);
+  // Scene-class references: views of every catalogued panorama, grouped as
+  // this world groups them (scene_reference_builder.cpp).
+  base.scene_class_left_out = view.group;
+  r["scene_class_left_out"] = view.group;
 
   // The light classifier.
   json classifier_used = "committed";
@@ -664,7 +633,7 @@ inference::InferenceOptions leave_one_out_options(const PanoramaView& view, cons
     std::vector<std::string> kept;
     for (const auto& entry : spec.panoramas) {
       const std::string name = catalogue_name(entry, pmndrs_dir);
-      if (!name.empty() && group_of(name) == view.group) skip.insert(entry);
+      if (!name.empty() && panorama_group(name) == view.group) skip.insert(entry);
       else kept.push_back(entry);
     }
     json key = classifier_spec_json(spec);

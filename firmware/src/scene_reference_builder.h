@@ -1,7 +1,9 @@
 // `propcam build-scene-refs`: the k-NN scene classifier's references — the
-// depth database's rendered rooms and streets plus rectilinear views cut
-// from the CC0 HDR panoramas of Debian's blender-data, exposed as a camera
-// would (real_views.h), each labelled by its panorama's class.
+// depth database's rendered rooms and streets, rectilinear views cut from the
+// 26 CC0 HDR panoramas (Debian's blender-data and npm's @pmndrs/assets),
+// exposed as a camera would (real_views.h), and optionally the photos of the
+// Blender world's tune split; each labelled by its class and grouped by
+// where it came from, so that a scored scene can leave its own group out.
 #pragma once
 
 #include <CLI/CLI.hpp>
@@ -13,19 +15,28 @@
 namespace propcam::firmware {
 
 struct LabelledPanorama {
-  std::string name;  // blender-data file stem (panorama_path)
+  std::string name;  // the file's stem (blender-data: panorama_path; pmndrs: DIR/NAME.exr)
   bool indoor = true;
 };
 
 // The blender-data panoramas and their classes (the labels of ibl_library.cpp).
 const std::vector<LabelledPanorama>& blender_panoramas();
+// The eighteen of @pmndrs/assets (scripts/fetch_pmndrs_hdri.sh; labels as
+// scripts/train_ibl_ranker.sh's).
+const std::vector<LabelledPanorama>& pmndrs_panoramas();
+// The leave-one-out group of a catalogue name ("city", "pmndrs_city"): its
+// own name, except where both sources hold one photograph ("pmndrs_sunrise"
+// is blender-data's "sunrise").
+std::string panorama_group(const std::string& catalogue_name);
+// The reference group of a Blender-world scene ("scene_12" -> "blender/scene_12").
+std::string blender_scene_group(const std::string& scene_name);
 
-// Where the views of a panorama look. Two of the eight panoramas are indoor,
-// so indoor ones are cut `indoor_turn_factor` times as densely in yaw: both
-// classes then bring as many real views.
+// Where the views of a panorama look. Indoor panoramas may be cut
+// `indoor_turn_factor` times as densely in yaw (with blender-data's eight
+// alone, two indoor, 3 balanced the classes; with all 26, 11 indoor, 1 does).
 struct RealViewGrid {
   int views_per_turn = 12;
-  int indoor_turn_factor = 3;
+  int indoor_turn_factor = 1;
   std::vector<double> pitches_deg = {-10, 0, 10};
   std::vector<double> fovs_deg = {50, 70};
   int width = 160, height = 120;  // the depth database's photo size
@@ -40,11 +51,13 @@ std::vector<std::vector<float>> panorama_view_descriptors(const cv::Mat& latlong
 struct SceneReferenceSpec {
   std::string depth_database;  // empty: default_depth_database_path()
   std::string panorama_dir;    // empty: kBlenderWorldDir
+  std::string pmndrs_dir;      // empty: build/pmndrs_hdri in the source tree
+  std::string blender_world;   // empty: none; else its tune split's photos (and their mirror images)
   RealViewGrid grid;
   bool quiet = false;
 };
 
-// Throws std::runtime_error when the depth database or a panorama cannot be read.
+// Throws std::runtime_error when the depth database, a panorama or the Blender world cannot be read.
 inference::SceneReferenceSet build_scene_references(const SceneReferenceSpec& spec);
 
 struct SceneReferenceArgs {
