@@ -60,8 +60,6 @@ struct Panorama {
   std::string group;  // leave-one-out group
 };
 
-std::string default_pmndrs_dir() { return std::string(PROPCAM_SOURCE_DIR) + "/build/pmndrs_hdri"; }
-
 std::string pmndrs_dir_of(const PanoramaWorldOptions& o) { return o.pmndrs_dir.empty() ? default_pmndrs_dir() : o.pmndrs_dir; }
 
 bool same_dir(const fs::path& a, const fs::path& b) {

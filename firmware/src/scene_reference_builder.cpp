@@ -42,6 +42,8 @@ const std::vector<LabelledPanorama>& pmndrs_panoramas() {
 // pmndrs' "sunrise" is blender-data's "sunrise" (another file and resolution,
 // same scene and yaw): correlating high-passed log luminance over all yaw
 // shifts at 128x64 gives this pair 0.91, every other pair of the 26 at most 0.55.
+std::string default_pmndrs_dir() { return std::string(PROPCAM_SOURCE_DIR) + "/build/pmndrs_hdri"; }
+
 std::string panorama_group(const std::string& catalogue_name) {
   return catalogue_name == "pmndrs_sunrise" ? "sunrise" : catalogue_name;
 }
@@ -71,8 +73,7 @@ inference::SceneReferenceSet build_scene_references(const SceneReferenceSpec& sp
     for (auto& d : panorama_view_descriptors(latlong, spec.grid, indoor)) set.add({std::move(d), indoor, group});
   };
   for (const auto& p : blender_panoramas()) add_views(dir + "/" + p.name + ".exr", panorama_group(p.name), p.indoor);
-  const std::string pmndrs =
-      spec.pmndrs_dir.empty() ? std::string(PROPCAM_SOURCE_DIR) + "/build/pmndrs_hdri" : spec.pmndrs_dir;
+  const std::string pmndrs = spec.pmndrs_dir.empty() ? default_pmndrs_dir() : spec.pmndrs_dir;
   for (const auto& p : pmndrs_panoramas()) {
     const std::string file = pmndrs + "/" + p.name + ".exr";
     if (!std::filesystem::exists(file))

@@ -24,6 +24,8 @@ const std::vector<LabelledPanorama>& blender_panoramas();
 // The eighteen of @pmndrs/assets (scripts/fetch_pmndrs_hdri.sh; labels as
 // scripts/train_ibl_ranker.sh's).
 const std::vector<LabelledPanorama>& pmndrs_panoramas();
+// Where scripts/fetch_pmndrs_hdri.sh puts them: build/pmndrs_hdri in the source tree.
+std::string default_pmndrs_dir();
 // The leave-one-out group of a catalogue name ("city", "pmndrs_city"): its
 // own name, except where both sources hold one photograph ("pmndrs_sunrise"
 // is blender-data's "sunrise").
@@ -51,7 +53,7 @@ std::vector<std::vector<float>> panorama_view_descriptors(const cv::Mat& latlong
 struct SceneReferenceSpec {
   std::string depth_database;  // empty: default_depth_database_path()
   std::string panorama_dir;    // empty: kBlenderWorldDir
-  std::string pmndrs_dir;      // empty: build/pmndrs_hdri in the source tree
+  std::string pmndrs_dir;      // empty: default_pmndrs_dir()
   std::string blender_world;   // empty: none; else its tune split's photos (and their mirror images)
   RealViewGrid grid;
   bool quiet = false;
