@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Regenerates the k-NN scene-class references committed at inference/data/scene_refs.bin:
+# Regenerates the scene-class references committed at inference/data/scene_refs.bin
+# and the classifier trained on them (inference/data/scene_classifier.yml.gz):
 # the committed depth database's rendered rooms and streets, views cut from the
 # 26 CC0 HDR panoramas (Debian's blender-data, installed by scripts/setup.sh, and
 # npm's @pmndrs/assets, fetched by scripts/fetch_pmndrs_hdri.sh), and the photos
@@ -18,4 +19,5 @@ bash scripts/fetch_pmndrs_hdri.sh >/dev/null
 cmake --preset release >/dev/null
 cmake --build --preset release --target propcam -j2
 build/release/firmware/propcam build-scene-refs -o inference/data/scene_refs.bin --db inference/data/depth_db.bin \
+  --classifier inference/data/scene_classifier.yml.gz \
   --blender-world "$world" "$@"

@@ -4,10 +4,12 @@
 #include <cstdio>
 #include <filesystem>
 #include <map>
+#include <memory>
 
 #include "propcam/capture/image_file.h"
 #include "propcam/inference/light_classifier.h"
 #include "propcam/inference/scene_class_knn.h"
+#include "propcam/inference/scene_classifier.h"
 #include "propcam/inference/sky.h"
 #include "propcam/render/panorama.h"
 #include "real_views.h"
@@ -64,12 +66,13 @@ class Bench {
   Bench(const SceneClassBenchArgs& args, const inference::SceneReferenceSet& refs) : args_(args), all_(refs) {
     for (size_t i = 0; i < refs.size(); ++i)
       if (refs.at(i).group == inference::kRenderedGroup) renders_.add(refs.at(i));
-    names_ = {"k-NN, renders (1st cut)", "k-NN, renders + real", "sky rule (current)"};
-    for (double t : args.sky_fractions) {
-      char name[64];
-      std::snprintf(name, sizeof name, "sky >= %.0f%%, else k-NN", 100 * t);
-      names_.push_back(name);
-    }
+    names_ = {"k-NN, renders (1st cut)", "k-NN, renders + real", "sky rule", "SVM, renders + real"};
+    for (const char* learnt : {"k-NN", "SVM"})
+      for (double t : args.sky_fractions) {
+        char name[64];
+        std::snprintf(name, sizeof name, "sky >= %.0f%%, else %s", 100 * t, learnt);
+        names_.push_back(name);
+      }
   }
   const std::vector<std::string>& names() const { return names_; }
 
@@ -89,23 +92,35 @@ class Bench {
     t0 = std::chrono::steady_clock::now();
     const bool sky_indoor = inference::classify_indoor(c.photo, c.camera, report, &sky);
     const double t_sky = seconds_since(t0);
-    v.indoor = {knn_renders.indoor, knn.indoor, sky_indoor};
-    v.seconds = {t_desc + t_renders, t_desc + t_all, t_sky};
-    for (double t : args_.sky_fractions) {
-      const bool sky_decides = !sky_indoor && sky.fraction >= t;
-      v.indoor.push_back(sky_decides ? false : knn.indoor);
-      v.seconds.push_back(t_sky + (sky_decides ? 0 : t_desc + t_all));
-    }
+    t0 = std::chrono::steady_clock::now();
+    const bool svm_indoor = classifier_without(c.exclude_group).indoor_score(desc) >= 0;
+    const double t_svm = seconds_since(t0);
+    v.indoor = {knn_renders.indoor, knn.indoor, sky_indoor, svm_indoor};
+    v.seconds = {t_desc + t_renders, t_desc + t_all, t_sky, t_desc + t_svm};
+    for (const auto& [learnt_indoor, t_learnt] : {std::pair{knn.indoor, t_all}, std::pair{svm_indoor, t_svm}})
+      for (double t : args_.sky_fractions) {
+        const bool sky_decides = !sky_indoor && sky.fraction >= t;
+        v.indoor.push_back(sky_decides ? false : learnt_indoor);
+        v.seconds.push_back(t_sky + (sky_decides ? 0 : t_desc + t_learnt));
+      }
     v.knn_share = knn.indoor_share;
     v.sky_fraction = sky.fraction;
     return v;
   }
 
  private:
+  // Trained once per left-out panorama (a few seconds each).
+  const inference::SceneClassifier& classifier_without(int group) const {
+    auto& slot = classifiers_[group];
+    if (!slot) slot = std::make_unique<inference::SceneClassifier>(inference::SceneClassifier::train(all_, group));
+    return *slot;
+  }
+
   const SceneClassBenchArgs& args_;
   const inference::SceneReferenceSet& all_;
   inference::SceneReferenceSet renders_;
   std::vector<std::string> names_;
+  mutable std::map<int, std::unique_ptr<inference::SceneClassifier>> classifiers_;
 };
 
 using Tallies = std::vector<Tally>;  // one per classifier

@@ -18,7 +18,7 @@ struct SceneClassBenchArgs {
   int width = 320, height = 240, spp = 16;
   int k = 7;
   std::string refs;  // empty: default_scene_reference_path()
-  std::vector<double> sky_fractions = {0.0, 0.02, 0.05, 0.10};  // combined: sky decides from this share up
+  std::vector<double> sky_fractions = {0.0, 0.05, 0.10, 0.20};  // combined: sky decides from this share up
   bool verbose = false;
   bool unbalanced = false;  // plain majority vote instead of class-balanced votes
 };

@@ -186,6 +186,7 @@ json score_world_estimate(const WorldScene& w, const inference::SceneModel& est,
   json row = {{"world", w.world}, {"scene", w.name}, {"split", w.split}, {"kind", w.kind},
               {"indoor_true", w.truth.indoor}, {"indoor", est.indoor}, {"indoor_right", est.indoor == w.truth.indoor},
               {"truth_noise_8bit", number_or_null(w.render_noise_8bit)}};
+  row["scene_class"] = scene_class_cues(est.reports);
   json seconds = stage_seconds(est.reports);
   seconds["inference"] = inference_seconds;
 

@@ -960,6 +960,7 @@ json run_panorama_world(const PanoramaWorldOptions& o, std::function<void(infere
       row["ibl_self_match"] = self_match;
       row["indoor_estimate"] = est.indoor;
       row["indoor_right"] = est.indoor == v.indoor;
+      row["scene_class"] = scene_class_cues(est.reports);
       row["lights"] = est.lights.size();
       const CameraErrors ce = camera_errors(est.camera(), v.camera);
       row["camera"] = {{"focal_rel", ce.focal_rel}, {"up_deg", ce.up_deg}, {"pitch_deg", ce.pitch_deg}, {"roll_deg", ce.roll_deg}};

@@ -8,6 +8,7 @@
 #include "progress.h"
 #include "propcam/capture/image_file.h"
 #include "propcam/inference/light_classifier.h"
+#include "propcam/inference/scene_classifier.h"
 #include "real_views.h"
 #include "world_scenes.h"
 
@@ -96,7 +97,7 @@ inference::SceneReferenceSet build_scene_references(const SceneReferenceSpec& sp
 
 CLI::App* add_build_scene_refs_command(CLI::App& app, SceneReferenceArgs& args) {
   auto* cmd = app.add_subcommand("build-scene-refs",
-                                 "Build the k-NN scene-class references: depth-database renders, real panorama views, Blender-world photos "
+                                 "Build the scene-class references (and classifier): depth-database renders, real panorama views, Blender-world photos "
                                  "(scripts/build_scene_refs.sh)");
   cmd->add_option("-o,--output", args.output, "Reference file to write")->required();
   cmd->add_option("--db", args.spec.depth_database, "Depth database whose renders to include (default: the committed one)");
@@ -107,6 +108,7 @@ CLI::App* add_build_scene_refs_command(CLI::App& app, SceneReferenceArgs& args) 
                   "A Blender world (scripts/make_blender_world.sh) whose tune split's photos to add");
   cmd->add_option("--views-per-turn", args.spec.grid.views_per_turn, "Yaws per outdoor panorama")
       ->check(CLI::PositiveNumber);
+  cmd->add_option("--classifier", args.classifier_output, "Also train the scene classifier (SVM) on them and write it here");
   return cmd;
 }
 
@@ -115,6 +117,10 @@ int run_build_scene_refs_command(const SceneReferenceArgs& args) {
   set.save(args.output);
   std::fprintf(stderr, "wrote %zu references (%zu panoramas) to %s\n", set.size(), set.groups().size(),
                args.output.c_str());
+  if (!args.classifier_output.empty()) {
+    inference::SceneClassifier::train(set).save(args.classifier_output);
+    std::fprintf(stderr, "wrote the scene classifier to %s\n", args.classifier_output.c_str());
+  }
   return 0;
 }
 

@@ -65,6 +65,7 @@ inference::SceneReferenceSet build_scene_references(const SceneReferenceSpec& sp
 struct SceneReferenceArgs {
   SceneReferenceSpec spec;
   std::string output;
+  std::string classifier_output;  // empty: no classifier
 };
 CLI::App* add_build_scene_refs_command(CLI::App& app, SceneReferenceArgs& args);
 int run_build_scene_refs_command(const SceneReferenceArgs& args);

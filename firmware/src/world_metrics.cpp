@@ -169,4 +169,14 @@ double angle_between_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * kRadToDeg;
 }
 
+nlohmann::json scene_class_cues(const std::vector<inference::StageReport>& reports) {
+  nlohmann::json cues = nlohmann::json::object();
+  for (const auto& r : reports) {
+    if (r.stage == "scene_class") cues.update(r.details);
+    if (r.stage == "orientation_map")
+      for (const char* key : {"ceiling_fraction", "floor_fraction"}) cues[key] = r.details.value(key, nlohmann::json());
+  }
+  return cues;
+}
+
 }  // namespace propcam::firmware

@@ -8,6 +8,7 @@
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
 
+#include "propcam/inference/scene_model.h"
 #include "propcam/render/camera.h"
 
 namespace propcam::firmware {
@@ -56,5 +57,9 @@ EmitterCounts count_emitters(const cv::Mat& truth, const cv::Mat& estimate, doub
 
 // Angle between two directions (degrees); 180 when either is zero or not finite.
 double angle_between_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b);
+
+// What the scene-class stage saw, for a bench row: its report's details
+// and the orientation map's ceiling and floor shares (null when absent).
+nlohmann::json scene_class_cues(const std::vector<inference::StageReport>& reports);
 
 }  // namespace propcam::firmware

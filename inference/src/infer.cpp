@@ -2,12 +2,15 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <memory>
+#include <mutex>
 #include <stdexcept>
 
 #include "load_once.h"
 #include "propcam/inference/contact_depth.h"
 #include "propcam/inference/scene_class_knn.h"
+#include "propcam/inference/scene_classifier.h"
 
 
 namespace propcam::inference {
@@ -57,6 +60,29 @@ cv::Size transfer_size(const render::PinholeCamera& camera, int solve_width) {
   return {w, std::max(1, static_cast<int>(std::lround(static_cast<double>(w) * camera.height / camera.width)))};
 }
 
+// The committed scene classifier for the committed references; for other
+// references, or with a group left out (benchmarks scoring a scene the
+// references hold), one trained on them, kept for the process's life.
+std::shared_ptr<const SceneClassifier> scene_classifier_for(const std::string& refs_path, const SceneReferenceSet& refs,
+                                                            int left_out, std::string& why) {
+  if (refs_path == default_scene_reference_path() && left_out < 0)
+    return load_once<SceneClassifier>(default_scene_classifier_path(), why);
+  static std::mutex mutex;
+  static std::map<std::pair<std::string, int>, std::shared_ptr<const SceneClassifier>> trained;
+  std::lock_guard lock(mutex);
+  auto& slot = trained[{refs_path, left_out}];
+  if (!slot) {
+    try {
+      slot = std::make_shared<const SceneClassifier>(SceneClassifier::train(refs, left_out));
+    } catch (const std::exception& e) {
+      why = e.what();
+      trained.erase({refs_path, left_out});
+      return nullptr;
+    }
+  }
+  return slot;
+}
+
 }  // namespace
 
 GeometryEstimate infer_geometry(const cv::Mat& photo, const InferenceOptions& options) {
@@ -100,7 +126,10 @@ GeometryEstimate infer_geometry(const cv::Mat& photo, const InferenceOptions& op
       class_options.knn.exclude_group = refs->find_group(options.scene_class_left_out);
       class_report.details["left_out"] = options.scene_class_left_out;
     }
-    g.indoor = classify_indoor_combined(photo, g.pinhole, *refs, class_report, &g.sky, class_options);
+    std::string classifier_why;
+    const auto classifier = scene_classifier_for(refs_path, *refs, class_options.knn.exclude_group, classifier_why);
+    g.indoor = classify_indoor_combined(photo, g.pinhole, *refs, class_report, &g.sky, class_options, classifier.get());
+    if (!classifier) class_report.details["svm_unavailable"] = classifier_why;
   } else {
     g.indoor = classify_indoor(photo, g.pinhole, class_report, &g.sky, options.scene_class.sky);
     class_report.details["method"] = "sky";

@@ -329,7 +329,19 @@ OrientationMap estimate_orientation_map(const std::vector<LineSegment>& lines, c
     }
   }
 
+  // Horizontal surfaces above the horizon are ceilings, below it floors:
+  // a seen ceiling is the scene-class stage's sign of a room.
+  int ceiling = 0, floor = 0;
+  const double to_full_x = static_cast<double>(camera.width) / out_w, to_full_y = static_cast<double>(camera.height) / out_h;
+  for (int y = 0; y < out_h; ++y)
+    for (int x = 0; x < out_w; ++x)
+      if (out.labels.at<uint8_t>(y, x) == static_cast<uint8_t>(SurfaceOrientation::kNormalY)) {
+        const double up = camera.ray_direction((x + 0.5) * to_full_x - 0.5, (y + 0.5) * to_full_y - 0.5).y();
+        (up > 0 ? ceiling : floor) += 1;
+      }
   const double total = static_cast<double>(out_w) * out_h;
+  out.ceiling_fraction = ceiling / total;
+  out.floor_fraction = floor / total;
   StageReport& r = out.report;
   r.stage = "orientation_map";
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -341,6 +353,8 @@ OrientationMap estimate_orientation_map(const std::vector<LineSegment>& lines, c
                {"fraction_x", counts[1] / total},
                {"fraction_y", counts[2] / total},
                {"fraction_z", counts[3] / total},
+               {"ceiling_fraction", out.ceiling_fraction},
+               {"floor_fraction", out.floor_fraction},
                {"lines_used", swept_lines},
                {"lines_labelled", static_cast<int>(segments.size())},
                {"width", out_w},

@@ -1,4 +1,5 @@
 #include "propcam/inference/scene_class_knn.h"
+#include "propcam/inference/scene_classifier.h"
 
 #include <algorithm>
 #include <chrono>
@@ -205,25 +206,34 @@ KnnSceneClass classify_indoor_knn(const cv::Mat& photo_linear, const DepthDataba
 
 bool classify_indoor_combined(const cv::Mat& photo_linear, const render::PinholeCamera& camera,
                               const SceneReferenceSet& refs, StageReport& report, SkyEstimate* sky_out,
-                              const CombinedSceneClassOptions& options) {
+                              const CombinedSceneClassOptions& options, const SceneClassifier* classifier) {
   const auto start = std::chrono::steady_clock::now();
   SkyEstimate sky;
   const bool sky_says_indoor = classify_indoor(photo_linear, camera, report, &sky, options.sky);
   report.details["sky_rule"] = sky_says_indoor ? "indoor" : "outdoor";
+  // Both learned cues run on every photo (milliseconds) so the report shows them.
+  const std::vector<float> descriptor = appearance_descriptor(photo_linear);
+  const KnnSceneClass knn = classify_indoor_knn(descriptor, refs, options.knn);
+  report.details["knn_indoor_share"] = knn.indoor_share;
+  report.details["knn_k"] = knn.k;
+  report.details["knn_real_neighbours"] = knn.real_neighbours;
+  report.details["references"] = refs.size();
+  double score = 0;
+  if (classifier) report.details["svm_indoor_score"] = score = classifier->indoor_score(descriptor);
   bool indoor = sky_says_indoor;
+  const auto share = [](double v) { return std::to_string(v).substr(0, 5); };
   if (!sky_says_indoor && sky.fraction >= options.sky_decides_fraction) {
     report.details["method"] = "sky";
     report.why = "sky covers " + std::to_string(static_cast<int>(std::lround(100 * sky.fraction))) + "% of the frame: outdoor";
+  } else if (classifier) {
+    // A tie goes indoor, the class that asks nothing of the sky.
+    indoor = score >= 0;
+    report.details["method"] = "svm";
+    report.why = std::string("SVM: ") + (indoor ? "indoor" : "outdoor") + " (score " + share(score) + ")";
   } else {
-    const KnnSceneClass knn = classify_indoor_knn(photo_linear, refs, options.knn);
     indoor = knn.indoor;
     report.details["method"] = "knn";
-    report.details["knn_indoor_share"] = knn.indoor_share;
-    report.details["knn_k"] = knn.k;
-    report.details["knn_real_neighbours"] = knn.real_neighbours;
-    report.details["references"] = refs.size();
-    report.why = std::string("k-NN: ") + (indoor ? "indoor" : "outdoor") + " (indoor share " +
-                 std::to_string(knn.indoor_share).substr(0, 4) + ")";
+    report.why = std::string("k-NN: ") + (indoor ? "indoor" : "outdoor") + " (indoor share " + share(knn.indoor_share) + ")";
   }
   report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (sky_out) *sky_out = std::move(sky);

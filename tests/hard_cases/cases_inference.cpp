@@ -16,6 +16,7 @@
 #include "propcam/inference/infer.h"
 #include "propcam/inference/intensity_fit.h"
 #include "propcam/inference/sun_choice.h"
+#include "propcam/inference/scene_classifier.h"
 #include "propcam/inference/scene_model.h"
 
 namespace propcam::inference {
@@ -326,6 +327,16 @@ void add_inference_cases(std::vector<HardCase>& cases) {
                      save_small_scene(dir / "scene");
                      hard_cases::write_text_file(dir / "scene" / "scene.json", "{\"width\": 4, \"height\"");
                      load_scene((dir / "scene").string());
+                   }});
+  cases.push_back({"SceneClassifierTruncated", m, "a scene classifier model cut to its first 200 bytes",
+                   "error naming the model file", Expect::Error, {"cut_classifier.yml"}, [](Digest&) {
+                     hard_cases::ScratchDir dir("SceneClassifierTruncated");
+                     std::ifstream in(default_scene_classifier_path(), std::ios::binary);
+                     std::string head(200, '\0');
+                     in.read(head.data(), static_cast<std::streamsize>(head.size()));
+                     // The compressed head under a plain-text name: broken as YAML and as gzip.
+                     hard_cases::write_text_file(dir / "cut_classifier.yml", head.substr(0, static_cast<size_t>(in.gcount())));
+                     SceneClassifier::load((dir / "cut_classifier.yml").string());
                    }});
   cases.push_back({"SceneJsonNegativeFocal", m, "a saved scene whose focal lengths were edited to -4",
                    "error naming the focal length", Expect::Error, {"focal length"}, [](Digest&) {

@@ -49,6 +49,8 @@ struct OrientationMapOptions {
 
 struct OrientationMap {
   cv::Mat labels;      // CV_8U, values SurfaceOrientation, at options.width x round(width*h/w)
+  double ceiling_fraction = 0.0;  // of the map: labelled kNormalY and seen above the horizon
+  double floor_fraction = 0.0;    // labelled kNormalY and seen below it
   StageReport report;  // stage "orientation_map"; details: coverage (fraction labelled), per-label fractions, lines used, seconds
 };
 

@@ -78,17 +78,23 @@ KnnSceneClass classify_indoor_knn(const std::vector<float>& descriptor, const Sc
 // Against the depth database's renders only (the first cut; kept for comparison).
 KnnSceneClass classify_indoor_knn(const cv::Mat& photo_linear, const DepthDatabase& db, int k = 7);
 
-// The sky rule and k-NN together: a photo whose sky the rule sees and that
-// covers at least `sky_decides_fraction` of the frame is outdoor; any other
-// photo is decided by k-NN. Fills the "scene_class" report (method: "sky" or
-// "knn", the sky fraction, the k-NN indoor share and real neighbours).
+// The sky rule with a learned classifier: a photo whose sky the rule sees
+// and that covers at least `sky_decides_fraction` of the frame is outdoor;
+// any other photo is decided by `classifier` (scene_classifier.h) when
+// given, else by k-NN. Fills the "scene_class" report (method "sky", "svm"
+// or "knn"; the sky fraction, the classifier's score, the k-NN indoor share
+// and real neighbours).
 struct CombinedSceneClassOptions {
-  double sky_decides_fraction = 0.0;  // 0: whenever the sky rule says outdoor (measured best)
+  // Sky under 5% of the frame may be a bright wall: the classifier then
+  // decides (docs/scene_class.md: best on our own world, within 1% of the
+  // best on the real and Blender-rendered ones).
+  double sky_decides_fraction = 0.05;
   KnnOptions knn;
   SkyOptions sky;
 };
+class SceneClassifier;
 bool classify_indoor_combined(const cv::Mat& photo_linear, const render::PinholeCamera& camera,
                               const SceneReferenceSet& refs, StageReport& report, SkyEstimate* sky = nullptr,
-                              const CombinedSceneClassOptions& options = {});
+                              const CombinedSceneClassOptions& options = {}, const SceneClassifier* classifier = nullptr);
 
 }  // namespace propcam::inference

@@ -1,0 +1,102 @@
+// The scene classifier (SVM on the appearance descriptor): the committed
+// model is the one its references train, it survives a save and load, it
+// classifies real views of panoramas it never saw, and the combined stage
+// says it decided.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "propcam/capture/image_file.h"
+#include "propcam/inference/light_classifier.h"
+#include "propcam/inference/scene_class_knn.h"
+#include "propcam/inference/scene_classifier.h"
+#include "propcam/render/panorama.h"
+#include "files_in_dir.h"
+
+namespace propcam::inference {
+namespace {
+
+constexpr const char* kBlenderWorld = "/usr/share/blender/datafiles/studiolights/world";
+// Scores of the committed model and of a fresh training agree to this
+// (the model file stores support vectors as text).
+constexpr double kScoreTolerance = 1e-4;
+
+const SceneReferenceSet& references() {
+  static const SceneReferenceSet refs = SceneReferenceSet::load(default_scene_reference_path());
+  return refs;
+}
+
+const SceneClassifier& committed() {
+  static const SceneClassifier c = SceneClassifier::load(default_scene_classifier_path());
+  return c;
+}
+
+cv::Mat panorama(const std::string& name) {
+  std::vector<cv::Mat> ch;
+  cv::split(capture::read_image_float(std::string(kBlenderWorld) + "/" + name + ".exr"), ch);
+  cv::Mat rgb;
+  cv::merge(std::vector<cv::Mat>{ch[0], ch[1], ch[2]}, rgb);
+  return rgb;
+}
+
+TEST(SceneClassifier, CommittedModelIsTheOneItsReferencesTrain) {
+  const SceneClassifier fresh = SceneClassifier::train(references());
+  int right = 0, checked = 0;
+  for (size_t i = 0; i < references().size(); i += 37, ++checked) {
+    const SceneReference& r = references().at(i);
+    const double score = committed().indoor_score(r.descriptor);
+    EXPECT_NEAR(score, fresh.indoor_score(r.descriptor), kScoreTolerance) << "reference " << i;
+    right += (score >= 0) == r.indoor;
+  }
+  // Trained on them: nearly all of its own references right.
+  EXPECT_GE(right, checked * 9 / 10) << right << " of " << checked;
+}
+
+TEST(SceneClassifier, SaveLoadKeepsTheScoresAndLeavesNoTemporaryFile) {
+  const std::string dir = ::testing::TempDir() + "/scene_classifier_roundtrip";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  committed().save(dir + "/model.yml.gz");
+  const SceneClassifier again = SceneClassifier::load(dir + "/model.yml.gz");
+  for (size_t i = 0; i < references().size(); i += 101)
+    EXPECT_EQ(again.indoor_score(references().at(i).descriptor), committed().indoor_score(references().at(i).descriptor));
+  expect_only_files(dir, {"model.yml.gz"});
+}
+
+// A real view, classified by a model trained without any view of its
+// panorama (leave-one-panorama-out).
+TEST(SceneClassifier, HeldOutRealViewsAreClassifiedRight) {
+  if (!std::filesystem::exists(std::string(kBlenderWorld) + "/interior.exr"))
+    GTEST_SKIP() << "install blender-data (scripts/setup.sh does)";
+  for (const auto& [name, indoor] : {std::pair{"interior", true}, std::pair{"sunset", false}}) {
+    const auto views = panorama_views(panorama(name), 1, {5.0}, 60.0, 320, 240);
+    ASSERT_EQ(views.size(), 1u);
+    const int group = references().find_group(name);
+    ASSERT_GE(group, 0);
+    const SceneClassifier held_out = SceneClassifier::train(references(), group);
+    const double score = held_out.indoor_score(appearance_descriptor(views[0].photo_linear));
+    EXPECT_EQ(score >= 0, indoor) << name << ": score " << score;
+  }
+}
+
+TEST(SceneClassifier, CombinedStageSaysTheClassifierDecided) {
+  render::ViewSpec spec;
+  spec.width = 160;
+  spec.height = 120;
+  // Texture everywhere: nothing the sky rule could take for sky.
+  cv::Mat textured(120, 160, CV_32FC3);
+  cv::RNG rng(11);
+  rng.fill(textured, cv::RNG::UNIFORM, 0.f, 1.f);
+  StageReport report;
+  const bool indoor = classify_indoor_combined(textured, render::view_camera(spec), references(), report, nullptr, {}, &committed());
+  ASSERT_TRUE(report.details.contains("method"));
+  EXPECT_EQ(report.details["method"], "svm") << "a textured frame shows no sky";
+  ASSERT_TRUE(report.details.contains("svm_indoor_score"));
+  EXPECT_EQ(report.details["svm_indoor_score"].get<double>() >= 0, indoor);
+  EXPECT_TRUE(report.details.contains("knn_indoor_share")) << "k-NN is reported beside it";
+}
+
+}  // namespace
+}  // namespace propcam::inference
