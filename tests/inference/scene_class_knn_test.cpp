@@ -11,29 +11,20 @@
 #include "propcam/inference/scene_class_knn.h"
 #include "propcam/render/panorama.h"
 #include "files_in_dir.h"
+#include "scene_class_fixtures.h"
 
 namespace propcam::inference {
 namespace {
 
-constexpr const char* kBlenderWorld = "/usr/share/blender/datafiles/studiolights/world";
+using testing::blender_panorama;
+using testing::kBlenderPanoramaDir;
 // What scripts/build_scene_refs.sh commits: the depth database's 160 rooms
 // and 120 streets, views of the 26 panoramas (25 groups: pmndrs' sunrise is
 // blender-data's), and photos of the Blender world's tune split.
 constexpr size_t kRendered = 280;
 constexpr size_t kPanoramaGroups = 25;
 
-const SceneReferenceSet& references() {
-  static const SceneReferenceSet refs = SceneReferenceSet::load(default_scene_reference_path());
-  return refs;
-}
-
-cv::Mat panorama(const std::string& name) {
-  std::vector<cv::Mat> ch;
-  cv::split(capture::read_image_float(std::string(kBlenderWorld) + "/" + name + ".exr"), ch);
-  cv::Mat rgb;
-  cv::merge(std::vector<cv::Mat>{ch[0], ch[1], ch[2]}, rgb);
-  return rgb;
-}
+const SceneReferenceSet& references() { return testing::committed_references(); }
 
 TEST(SceneClassKnn, CommittedReferencesLoadWithRendersRealViewsAndTheBlenderWorldsTuneSplitOnly) {
   const SceneReferenceSet& refs = references();
@@ -109,10 +100,10 @@ TEST(SceneClassKnn, ExcludedGroupIsNeverANeighbour) {
 // A real view, classified against references that hold no view of its
 // panorama (leave-one-panorama-out, as `propcam bench scene-class` measures).
 TEST(SceneClassKnn, HeldOutRealViewsAreClassifiedRight) {
-  if (!std::filesystem::exists(std::string(kBlenderWorld) + "/interior.exr"))
+  if (!std::filesystem::exists(std::string(kBlenderPanoramaDir) + "/interior.exr"))
     GTEST_SKIP() << "install blender-data (scripts/setup.sh does)";
   for (const auto& [name, indoor] : {std::pair{"interior", true}, std::pair{"sunset", false}}) {
-    const auto views = panorama_views(panorama(name), 1, {5.0}, 60.0, 320, 240);
+    const auto views = panorama_views(blender_panorama(name), 1, {5.0}, 60.0, 320, 240);
     ASSERT_EQ(views.size(), 1u);
     const int group = references().find_group(name);
     ASSERT_GE(group, 0);

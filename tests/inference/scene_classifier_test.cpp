@@ -14,31 +14,22 @@
 #include "propcam/inference/scene_classifier.h"
 #include "propcam/render/panorama.h"
 #include "files_in_dir.h"
+#include "scene_class_fixtures.h"
 
 namespace propcam::inference {
 namespace {
 
-constexpr const char* kBlenderWorld = "/usr/share/blender/datafiles/studiolights/world";
+using testing::blender_panorama;
+using testing::kBlenderPanoramaDir;
 // Scores of the committed model and of a fresh training agree to this
 // (the model file stores support vectors as text).
 constexpr double kScoreTolerance = 1e-4;
 
-const SceneReferenceSet& references() {
-  static const SceneReferenceSet refs = SceneReferenceSet::load(default_scene_reference_path());
-  return refs;
-}
+const SceneReferenceSet& references() { return testing::committed_references(); }
 
 const SceneClassifier& committed() {
   static const SceneClassifier c = SceneClassifier::load(default_scene_classifier_path());
   return c;
-}
-
-cv::Mat panorama(const std::string& name) {
-  std::vector<cv::Mat> ch;
-  cv::split(capture::read_image_float(std::string(kBlenderWorld) + "/" + name + ".exr"), ch);
-  cv::Mat rgb;
-  cv::merge(std::vector<cv::Mat>{ch[0], ch[1], ch[2]}, rgb);
-  return rgb;
 }
 
 TEST(SceneClassifier, CommittedModelIsTheOneItsReferencesTrain) {
@@ -68,10 +59,10 @@ TEST(SceneClassifier, SaveLoadKeepsTheScoresAndLeavesNoTemporaryFile) {
 // A real view, classified by a model trained without any view of its
 // panorama (leave-one-panorama-out).
 TEST(SceneClassifier, HeldOutRealViewsAreClassifiedRight) {
-  if (!std::filesystem::exists(std::string(kBlenderWorld) + "/interior.exr"))
+  if (!std::filesystem::exists(std::string(kBlenderPanoramaDir) + "/interior.exr"))
     GTEST_SKIP() << "install blender-data (scripts/setup.sh does)";
   for (const auto& [name, indoor] : {std::pair{"interior", true}, std::pair{"sunset", false}}) {
-    const auto views = panorama_views(panorama(name), 1, {5.0}, 60.0, 320, 240);
+    const auto views = panorama_views(blender_panorama(name), 1, {5.0}, 60.0, 320, 240);
     ASSERT_EQ(views.size(), 1u);
     const int group = references().find_group(name);
     ASSERT_GE(group, 0);
