@@ -21,6 +21,7 @@
 #include "propcam/inference/lighting.h"
 #include "propcam/inference/support_planes.h"
 #include "synthetic_truth.h"
+#include "world_metrics.h"
 
 namespace propcam::firmware {
 namespace {
@@ -40,8 +41,6 @@ constexpr int kRegionGrowPx = 2;
 constexpr double kNoiseBlurSigmaPx = 1.5;
 // Yaw of the prop (degrees): a cube turned off the room's axes shows two faces.
 constexpr double kPropYawDeg = 30.0;
-// Resolution of the baseline's environment (the photo wrapped onto a sphere).
-constexpr int kBaselineEnvironmentWidth = 128;
 
 double luminance(const Vector3f& c) { return 0.2126 * c.x() + 0.7152 * c.y() + 0.0722 * c.z(); }
 
@@ -220,12 +219,8 @@ inference::GeometryEstimate true_geometry(const Shot& s) {
 // The Khan-style baseline on the same geometry and albedo: the photo wrapped
 // onto a sphere is the only light, at its measured radiance.
 Errors evaluate_baseline(const Shot& s, const render::Mesh& prop, int spp) {
-  inference::SceneModel est = inference::complete_scene(s.shot.photo_linear, s.geometry, inference::InferenceOptions{});
-  inference::LightSource env;
-  env.type = inference::LightSource::Type::Ibl;
-  env.environment = inference::environment_from_photo(s.shot.photo_linear, s.geometry.pinhole, kBaselineEnvironmentWidth);
-  est.lights = {env};
-  est.gamma = 2.2;
+  const inference::SceneModel est = khan_baseline(
+      inference::complete_scene(s.shot.photo_linear, s.geometry, inference::InferenceOptions{}), s.shot.photo_linear);
   Errors e;
   e.rerender = std::nan("");
   score_scene(s, est, prop, spp, e);

@@ -45,8 +45,6 @@ constexpr uint64_t kProbeSeed = 17;
 // A Blender scene's truth counts as clean at or below this render noise
 // (8-bit levels; composite errors are 10-30 levels).
 constexpr double kCleanTruthNoise8bit = 5.0;
-// The Khan-style baseline's environment width (as bench lighting's).
-constexpr int kBaselineEnvironmentWidth = 128;
 
 json number_or_null(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
 double num(const json& j) { return j.is_number() ? j.get<double>() : std::nan(""); }
@@ -238,12 +236,7 @@ json score_world_estimate(const WorldScene& w, const inference::SceneModel& est,
                                    static_cast<double>(composite.total());
 
     // The Khan-style baseline: the same scene, lit only by the photo wrapped onto a sphere.
-    inference::SceneModel khan = est;
-    inference::LightSource env;
-    env.type = inference::LightSource::Type::Ibl;
-    env.environment = inference::environment_from_photo(w.photo_linear, camera, kBaselineEnvironmentWidth);
-    khan.lights = {env};
-    khan.gamma = 2.2;
+    const inference::SceneModel khan = khan_baseline(est, w.photo_linear);
     try {
       row["khan"] = image_scores(composite_display(w, khan, prop, spp), w, region);
     } catch (const std::invalid_argument&) {
@@ -456,7 +449,13 @@ std::string format_worlds_bench(const json& r) {
           std::snprintf(line, sizeof line, " %s %.3f / %.3f;", sphere.c_str(), num(p["rmse_median"]), num(p["si_rmse_median"]));
           out << line;
         }
-        out << " placed " << s.value("placed", 0) << "\n";
+        out << " placed " << s.value("placed", 0) << "\n          Khan-style baseline, scale-invariant RMSE (ours below it):";
+        for (const auto& [sphere, p] : s["probe"].items()) {
+          std::snprintf(line, sizeof line, " %s %.3f (%.0f%%);", sphere.c_str(), num(p["khan_si_rmse_median"]),
+                        100 * num(p["si_beats_khan_share"]));
+          out << line;
+        }
+        out << "\n";
       }
     }
   }

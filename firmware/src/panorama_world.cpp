@@ -728,6 +728,49 @@ inference::InferenceOptions leave_one_out_options(const PanoramaView& view, cons
   return base;
 }
 
+namespace {
+
+// Each sphere's RMSE against the truth, and after the one scale (`si_scale`)
+// that best fits the image to the truth over all three spheres.
+void score_spheres(const cv::Mat& est, const cv::Mat& truth, const cv::Mat& mask, double& si_scale,
+                   std::vector<SphereScore>& spheres) {
+  double et = 0, ee = 0;
+  for (int y = 0; y < mask.rows; ++y)
+    for (int x = 0; x < mask.cols; ++x) {
+      if (!mask.at<uint8_t>(y, x)) continue;
+      const cv::Vec3f e = est.at<cv::Vec3f>(y, x), g = truth.at<cv::Vec3f>(y, x);
+      for (int c = 0; c < 3; ++c) et += double(e[c]) * g[c], ee += double(e[c]) * e[c];
+    }
+  const double alpha = ee > 0 ? et / ee : 1.0;
+  si_scale = alpha;
+  for (int k = 0; k < 3; ++k) {
+    SphereScore s;
+    s.material = kSphereNames[k];
+    double se = 0, sse = 0, le = 0, lt = 0;
+    int n = 0;
+    for (int y = 0; y < mask.rows; ++y)
+      for (int x = 0; x < mask.cols; ++x) {
+        if (mask.at<uint8_t>(y, x) != k + 1) continue;
+        const cv::Vec3f e = est.at<cv::Vec3f>(y, x), g = truth.at<cv::Vec3f>(y, x);
+        for (int c = 0; c < 3; ++c) {
+          se += (double(e[c]) - g[c]) * (double(e[c]) - g[c]);
+          sse += (alpha * e[c] - g[c]) * (alpha * e[c] - g[c]);
+        }
+        le += luminance(e), lt += luminance(g);
+        ++n;
+      }
+    s.pixels = n;
+    if (n > 0) {
+      s.rmse = std::sqrt(se / (3.0 * n));
+      s.si_rmse = std::sqrt(sse / (3.0 * n));
+      s.mean_estimate = le / n, s.mean_truth = lt / n;
+    }
+    spheres.push_back(s);
+  }
+}
+
+}  // namespace
+
 ProbeResult score_light_probe(const PanoramaView& view, const inference::SceneModel& estimate,
                               const PanoramaWorldOptions& o) {
   ProbeResult result;
@@ -827,40 +870,13 @@ ProbeResult score_light_probe(const PanoramaView& view, const inference::SceneMo
   truth = clip01(truth);
   result.seconds = seconds_since(t);
 
-  // Scores: the best single scale of the estimate over all three spheres.
-  double et = 0, ee = 0;
-  for (int y = 0; y < mask.rows; ++y)
-    for (int x = 0; x < mask.cols; ++x) {
-      if (!mask.at<uint8_t>(y, x)) continue;
-      const cv::Vec3f e = est.at<cv::Vec3f>(y, x), g = truth.at<cv::Vec3f>(y, x);
-      for (int c = 0; c < 3; ++c) et += double(e[c]) * g[c], ee += double(e[c]) * e[c];
-    }
-  const double alpha = ee > 0 ? et / ee : 1.0;
-  result.si_scale = alpha;
-  for (int k = 0; k < 3; ++k) {
-    SphereScore s;
-    s.material = kSphereNames[k];
-    double se = 0, sse = 0, le = 0, lt = 0;
-    int n = 0;
-    for (int y = 0; y < mask.rows; ++y)
-      for (int x = 0; x < mask.cols; ++x) {
-        if (mask.at<uint8_t>(y, x) != k + 1) continue;
-        const cv::Vec3f e = est.at<cv::Vec3f>(y, x), g = truth.at<cv::Vec3f>(y, x);
-        for (int c = 0; c < 3; ++c) {
-          se += (double(e[c]) - g[c]) * (double(e[c]) - g[c]);
-          sse += (alpha * e[c] - g[c]) * (alpha * e[c] - g[c]);
-        }
-        le += luminance(e), lt += luminance(g);
-        ++n;
-      }
-    s.pixels = n;
-    if (n > 0) {
-      s.rmse = std::sqrt(se / (3.0 * n));
-      s.si_rmse = std::sqrt(sse / (3.0 * n));
-      s.mean_estimate = le / n, s.mean_truth = lt / n;
-    }
-    result.spheres.push_back(s);
-  }
+  score_spheres(est, truth, mask, result.si_scale, result.spheres);
+  // The Khan-style baseline at the same spot, scored the same way.
+  const inference::SceneModel khan = khan_baseline(estimate, view.photo_linear);
+  const CompositeResult khan_composite =
+      composite_prop(capture::srgb_linear_to_response_linear(view.photo_linear, khan.gamma), khan, mesh, world->placement, settings);
+  score_spheres(clip01(capture::response_linear_to_srgb_linear(khan_composite.composite_linear, khan.gamma)), truth, mask,
+                result.khan_si_scale, result.khan_spheres);
   result.estimate = to_display(est);
   // For the eye, the truth's rendered box pasted into the photo (the box's
   // background is the panorama itself, unquantised).
@@ -900,6 +916,11 @@ json probe_json(const ProbeResult& p) {
   out["at"] = {p.at.x(), p.at.y()};
   out["spheres"] = spheres;
   out["si_scale"] = number_or_null(p.si_scale);
+  json khan = json::array();
+  for (const auto& k : p.khan_spheres)
+    khan.push_back({{"material", k.material}, {"rmse", number_or_null(k.rmse)}, {"si_rmse", number_or_null(k.si_rmse)}});
+  out["khan_spheres"] = khan;
+  out["khan_si_scale"] = number_or_null(p.khan_si_scale);
   out["direction_deg"] = number_or_null(p.direction_deg);
   out["estimate_light"] = moments_json(p.estimate_light);
   out["true_light"] = moments_json(p.true_light);
@@ -995,7 +1016,8 @@ json run_panorama_world(const PanoramaWorldOptions& o, std::function<void(infere
   // The summary.
   json summary = {{"scenes", rows.size()}};
   int classified = 0, right = 0, placed = 0;
-  std::map<std::string, std::vector<double>> rmse, si;
+  std::map<std::string, std::vector<double>> rmse, si, khan_si;
+  std::map<std::string, int> compared, beats_khan;
   std::vector<double> dir_all, dir_in, dir_out, focal, inference_s, probe_s, light_probe_s, loo_s;
   int em_truth = 0, em_found = 0, em_detected = 0, em_right = 0;
   for (const auto& r : rows) {
@@ -1018,6 +1040,15 @@ json run_panorama_world(const PanoramaWorldOptions& o, std::function<void(infere
       rmse[m].push_back(s["rmse"].is_number() ? s["rmse"].get<double>() : NAN);
       si[m].push_back(s["si_rmse"].is_number() ? s["si_rmse"].get<double>() : NAN);
     }
+    const json& ours = r["probe"]["spheres"];
+    const json& theirs = r["probe"].value("khan_spheres", json::array());
+    for (size_t k = 0; k < theirs.size() && k < ours.size(); ++k) {
+      const std::string m = theirs[k]["material"];
+      const double a = ours[k]["si_rmse"].is_number() ? ours[k]["si_rmse"].get<double>() : NAN;
+      const double b = theirs[k]["si_rmse"].is_number() ? theirs[k]["si_rmse"].get<double>() : NAN;
+      khan_si[m].push_back(b);
+      if (std::isfinite(a) && std::isfinite(b)) ++compared[m], beats_khan[m] += a < b ? 1 : 0;
+    }
     const double d = r["probe"]["direction_deg"].is_number() ? r["probe"]["direction_deg"].get<double>() : NAN;
     dir_all.push_back(d);
     (r.value("indoor_truth", false) ? dir_in : dir_out).push_back(d);
@@ -1037,7 +1068,10 @@ json run_panorama_world(const PanoramaWorldOptions& o, std::function<void(infere
   summary["indoor_accuracy"] = number_or_null(classified ? double(right) / classified : NAN);
   json probe = json::object();
   for (const char* m : kSphereNames)
-    probe[m] = {{"rmse_median", number_or_null(median(rmse[m]))}, {"si_rmse_median", number_or_null(median(si[m]))}};
+    probe[m] = {{"rmse_median", number_or_null(median(rmse[m]))},
+                {"si_rmse_median", number_or_null(median(si[m]))},
+                {"khan_si_rmse_median", number_or_null(median(khan_si[m]))},
+                {"si_beats_khan_share", number_or_null(compared[m] ? double(beats_khan[m]) / compared[m] : NAN)}};
   summary["probe"] = probe;
   summary["direction_deg_median"] = number_or_null(median(dir_all));
   summary["direction_deg_median_indoor"] = number_or_null(median(dir_in));

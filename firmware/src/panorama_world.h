@@ -129,6 +129,9 @@ struct ProbeResult {
   Eigen::Vector2d at = Eigen::Vector2d::Constant(NAN);  // the pixel the probe stands on
   std::vector<SphereScore> spheres;  // diffuse, rough metal, mirror
   double si_scale = NAN;             // the one scale over all three spheres applied to the estimate
+  // The Khan-style baseline (world_metrics.h) at the same spot, scored the same way.
+  std::vector<SphereScore> khan_spheres;
+  double khan_si_scale = NAN;
   double direction_deg = NAN;        // dominant light: estimate vs panorama, in the camera frame
   LightMoments estimate_light, true_light;  // in each one's camera frame (vector); irradiance_up in each world
   double seconds = 0;                // the two probe renders

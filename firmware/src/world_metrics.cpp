@@ -1,5 +1,7 @@
 #include "world_metrics.h"
 
+#include "propcam/inference/lighting.h"
+
 #include <algorithm>
 #include <cmath>
 #include <numbers>
@@ -167,6 +169,16 @@ EmitterCounts count_emitters(const cv::Mat& truth, const cv::Mat& estimate, doub
 double angle_between_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   if (!a.allFinite() || !b.allFinite() || !(a.norm() > 0) || !(b.norm() > 0)) return 180.0;
   return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * kRadToDeg;
+}
+
+inference::SceneModel khan_baseline(const inference::SceneModel& estimate, const cv::Mat& photo_linear) {
+  inference::SceneModel khan = estimate;
+  inference::LightSource env;
+  env.type = inference::LightSource::Type::Ibl;
+  env.environment = inference::environment_from_photo(photo_linear, estimate.camera(), kKhanEnvironmentWidth);
+  khan.lights = {env};
+  khan.gamma = 2.2;
+  return khan;
 }
 
 nlohmann::json scene_class_cues(const std::vector<inference::StageReport>& reports) {

@@ -58,6 +58,12 @@ EmitterCounts count_emitters(const cv::Mat& truth, const cv::Mat& estimate, doub
 // Angle between two directions (degrees); 180 when either is zero or not finite.
 double angle_between_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b);
 
+// The Khan-style baseline (Khan et al. 2006): `estimate`'s camera, geometry
+// and albedo lit only by the photo wrapped onto a sphere, at its measured
+// radiance (gamma 2.2, as the photo's display encoding).
+inline constexpr int kKhanEnvironmentWidth = 128;
+inference::SceneModel khan_baseline(const inference::SceneModel& estimate, const cv::Mat& photo_linear);
+
 // What the scene-class stage saw, for a bench row: its report's details
 // and the orientation map's ceiling and floor shares (null when absent).
 nlohmann::json scene_class_cues(const std::vector<inference::StageReport>& reports);
