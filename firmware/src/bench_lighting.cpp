@@ -325,12 +325,17 @@ std::vector<Config> configs(const std::vector<std::string>& sweeps) {
     out.push_back({"facades", "hidden facades (seen facades continued out of the frame)", 1,
                    [](inference::InferenceOptions& o) { o.lighting.hidden_facades = true; }});
   if (wanted("albedo")) {
-    out.push_back({"albedo", "Color Retinex", 0, [](inference::InferenceOptions& o) {
+    out.push_back({"albedo", "Color Retinex everywhere", 0, [](inference::InferenceOptions& o) {
                      o.albedo.method = inference::AlbedoOptions::Method::Retinex;
+                     o.albedo.outdoor_method.reset();
                    }});
     for (double f : {0.01, 0.02, 0.08})
-      out.push_back({"albedo", "blur sigma " + std::to_string(f).substr(0, 4) + " of diagonal", f,
-                     [f](inference::InferenceOptions& o) { o.albedo.blur_sigma_fraction = f; }});
+      out.push_back({"albedo", "blurred shading everywhere, sigma " + std::to_string(f).substr(0, 4) + " of diagonal", f,
+                     [f](inference::InferenceOptions& o) {
+                       o.albedo.method = inference::AlbedoOptions::Method::BlurredShading;
+                       o.albedo.outdoor_method.reset();
+                       o.albedo.blur_sigma_fraction = f;
+                     }});
   }
   if (wanted("response")) {
     out.push_back({"response", "gamma held at 1/2.2", 0,

@@ -144,9 +144,13 @@ std::vector<Row> rows_for(const std::vector<std::string>& sweeps) {
   if (wanted("spp"))
     for (int spp : {16, 256}) out.push_back({"spp", std::to_string(spp) + " spp composite", nullptr, spp});
   if (wanted("albedo"))
-    out.push_back({"albedo", "Color Retinex", [](inference::InferenceOptions& o) {
-                     o.albedo.method = inference::AlbedoOptions::Method::Retinex;
-                   }});
+    for (const auto method : {inference::AlbedoOptions::Method::Retinex, inference::AlbedoOptions::Method::BlurredShading})
+      out.push_back({"albedo",
+                     method == inference::AlbedoOptions::Method::Retinex ? "Color Retinex everywhere" : "blurred shading everywhere",
+                     [method](inference::InferenceOptions& o) {
+                       o.albedo.method = method;
+                       o.albedo.outdoor_method.reset();
+                     }});
   if (wanted("fit"))
     for (int spp : {2, 16})
       out.push_back({"fit", std::to_string(spp) + " spp basis renders", [spp](inference::InferenceOptions& o) {

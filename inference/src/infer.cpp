@@ -234,7 +234,9 @@ SceneModel complete_scene(const cv::Mat& photo_linear, const GeometryEstimate& g
 
   if (options.on_stage) options.on_stage("albedo");
   StageReport albedo_report;
-  scene.albedo = estimate_albedo(photo, options.albedo, albedo_report);
+  AlbedoOptions albedo_options = options.albedo;
+  if (!scene.indoor && albedo_options.outdoor_method) albedo_options.method = *albedo_options.outdoor_method;
+  scene.albedo = estimate_albedo(photo, albedo_options, albedo_report);
   scene.reports.push_back(albedo_report);
 
   if (options.on_stage) options.on_stage("lighting");

@@ -5,7 +5,9 @@
 #include <limits>
 
 #include "propcam/inference/infer.h"
+#include "propcam/inference/light_classifier.h"
 #include "propcam/inference/sky.h"
+#include "scene_class_fixtures.h"
 
 namespace propcam::inference {
 namespace {
@@ -20,6 +22,17 @@ void expect_finite_model(const SceneModel& s) {
   EXPECT_GT(min_depth, 0.0);
   for (const auto& l : s.lights) EXPECT_TRUE(l.intensity.allFinite());
   EXPECT_FALSE(s.reports.empty());
+}
+
+// 160x120: a smooth blue sky over the top 50 rows, textured ground below.
+cv::Mat blue_sky_over_ground() {
+  cv::Mat photo(120, 160, CV_32FC3);
+  cv::RNG rng(3);
+  for (int y = 0; y < photo.rows; ++y)
+    for (int x = 0; x < photo.cols; ++x)
+      photo.at<cv::Vec3f>(y, x) = y < 50 ? cv::Vec3f(0.3f, 0.5f, 0.9f)
+                                          : cv::Vec3f(0.2f, 0.25f, 0.1f) * static_cast<float>(rng.uniform(0.5, 1.5));
+  return photo;
 }
 
 // A tiny room drawn by hand: floor below, wall above, a few edges.
@@ -77,6 +90,31 @@ TEST(InferScene, FloorDepthFollowsFromCameraHeight) {
   // 0.5%: the depth solve's priors pull a little at the floor-wall crease.
   EXPECT_NEAR(s.depth.at<float>(200, 160), s.fx * 1.5 / rows_below, 5e-3 * s.depth.at<float>(200, 160));
   EXPECT_NEAR(s.normals.at<cv::Vec3f>(200, 160)[1], 1.0, 1e-4);
+}
+
+// The albedo method follows the scene class: Retinex indoors, the blur
+// outdoors (albedo.h), unless one method is asked for everywhere.
+TEST(InferScene, AlbedoMethodFollowsTheSceneClass) {
+  const auto albedo_why = [](const SceneModel& s) {
+    for (const auto& r : s.reports)
+      if (r.stage == "albedo") return r.why;
+    return std::string("no albedo report");
+  };
+  const cv::Mat street = blue_sky_over_ground();
+  const SceneModel outdoor = infer_scene(street);
+  ASSERT_FALSE(outdoor.indoor) << "a blue sky over a third of the frame";
+  EXPECT_NE(albedo_why(outdoor).find("blurred"), std::string::npos) << albedo_why(outdoor);
+  InferenceOptions everywhere;
+  everywhere.albedo.outdoor_method.reset();
+  EXPECT_NE(albedo_why(infer_scene(street, everywhere)).find("Retinex"), std::string::npos);
+
+  if (!std::filesystem::exists(std::string(testing::kBlenderPanoramaDir) + "/interior.exr"))
+    GTEST_SKIP() << "install blender-data (scripts/setup.sh does)";
+  // A real room: a view of blender-data's hotel room.
+  const auto views = panorama_views(testing::blender_panorama("interior"), 1, {5.0}, 60.0, 160, 120);
+  const SceneModel room = infer_scene(views.at(0).photo_linear);
+  ASSERT_TRUE(room.indoor);
+  EXPECT_NE(albedo_why(room).find("Retinex"), std::string::npos) << albedo_why(room);
 }
 
 TEST(SceneModelFolder, RoundTripsEverything) {
@@ -148,12 +186,7 @@ render::PinholeCamera level_camera(int w, int h) {
 }
 
 TEST(Sky, ABlueSmoothTopOverTexturedGroundIsOutdoor) {
-  cv::Mat photo(120, 160, CV_32FC3);
-  cv::RNG rng(3);
-  for (int y = 0; y < photo.rows; ++y)
-    for (int x = 0; x < photo.cols; ++x)
-      photo.at<cv::Vec3f>(y, x) = y < 50 ? cv::Vec3f(0.3f, 0.5f, 0.9f)
-                                          : cv::Vec3f(0.2f, 0.25f, 0.1f) * static_cast<float>(rng.uniform(0.5, 1.5));
+  const cv::Mat photo = blue_sky_over_ground();
   StageReport report;
   SkyEstimate sky;
   EXPECT_FALSE(classify_indoor(photo, level_camera(160, 120), report, &sky));

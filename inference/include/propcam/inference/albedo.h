@@ -6,6 +6,7 @@
 #pragma once
 
 #include <opencv2/core.hpp>
+#include <optional>
 
 #include "propcam/inference/scene_model.h"
 
@@ -13,15 +14,16 @@ namespace propcam::inference {
 
 struct AlbedoOptions {
   // Retinex, or the first cut: the photo divided by its Gaussian-blurred
-  // luminance (sigma 2% of the diagonal: 4% until session 6, when the
-  // streets' composite error fell 0.620 -> 0.593 and the rooms' held, `propcam
-  // bench lighting --sweeps albedo`). Retinex has the lower error on the
-  // generator's rooms (`propcam bench`), but its albedo is globally scaled, and
-  // where the light fit then under-renders a region (the lawn of building.jpg)
-  // the prop's shadow there fades; the blur normalises locally. The default
-  // stays the blur until the light fit accounts for that (issue 5).
+  // luminance (sigma 2% of the diagonal). Retinex indoors: on all three
+  // worlds it lowers the rooms' composite error (docs/albedo.md). Outdoors
+  // the worlds disagree (Blender's streets gain, our own lose a composite
+  // that beat the photo, the panoramas' light direction moves 5 degrees
+  // further off), and the blur normalises locally where the light fit
+  // under-renders a region (the lawn of building.jpg): `outdoor_method`
+  // keeps the blur there; empty means `method` everywhere.
   enum class Method { Retinex, BlurredShading };
-  Method method = Method::BlurredShading;
+  Method method = Method::Retinex;
+  std::optional<Method> outdoor_method = Method::BlurredShading;
   double blur_sigma_fraction = 0.02;
   // Thresholds on per-pixel derivatives, chosen on the generator's rooms
   // (`propcam bench`, albedo LMSE): chromaticity change (|delta rgb/sum|) and
