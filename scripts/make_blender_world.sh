@@ -4,7 +4,7 @@
 #
 #   scripts/make_blender_world.sh --out DIR [--count N] [--size WxH] [--spp N]
 #       [--max-spp M] [--noise-target L] [--seed S] [--threads T] [--probe-spp N]
-#       [--noise-check K] [--only-missing]
+#       [--noise-check K] [--only-missing] [--held-only]
 #
 # Works from a fresh clone after `bash scripts/setup.sh` and a release build
 # (build/release/firmware/propcam): it exports the preset props with
@@ -16,11 +16,13 @@
 # on PATH. Defaults: 66 scenes from seed 1 at 320x240, 2 threads, per scene the
 # fewest spp in [128, 256] whose predicted noise is at most 3 8-bit levels
 # (--spp N --max-spp N: always N), a 4x-spp noise check on the first 3 scenes.
+# --held-only renders only the held split's seeds (multiples of 3): a fresh
+# held set above seed 66 judges a change chosen after the first one was seen.
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 root="$(cd "$here/.." && pwd)"
 out="" count=66 size=320x240 spp=128 max_spp=256 noise_target=3 seed=1 threads=2 probe_spp=256 noise_check=3
-only_missing=0
+only_missing=0 held_only=0
 propcam="${PROPCAM:-$root/build/release/firmware/propcam}"
 while [[ $# -gt 0 ]]; do
   case "$1" in
@@ -35,7 +37,8 @@ while [[ $# -gt 0 ]]; do
     --probe-spp) probe_spp="$2"; shift 2 ;;
     --noise-check) noise_check="$2"; shift 2 ;;
     --only-missing) only_missing=1; shift ;;
-    -h|--help) sed -n '2,18p' "$0"; exit 0 ;;
+    --held-only) held_only=1; shift ;;
+    -h|--help) sed -n '2,20p' "$0"; exit 0 ;;
     *) echo "make_blender_world: unknown argument $1" >&2; exit 2 ;;
   esac
 done
@@ -47,9 +50,11 @@ mkdir -p "$out"
 out="$(cd "$out" && pwd)"
 "$propcam" props --export "$out/props" >/dev/null
 py=/usr/bin/python3
-failed=0 done_count=0
+failed=0 done_count=0 wanted=0
 for ((i = 0; i < count; i++)); do
   s=$((seed + i))
+  if ((held_only && s % 3 != 0)); then continue; fi  # the split rule of scripts/blender/world.py
+  wanted=$((wanted + 1))
   dir="$out/scene_$s"
   if [[ -f "$dir/scene_done.json" ]]; then done_count=$((done_count + 1)); continue; fi
   rm -rf "$dir"
@@ -61,7 +66,7 @@ for ((i = 0; i < count; i++)); do
       --props "$out/props" --size "$size" --spp "$spp" --max-spp "$max_spp" --noise-target "$noise_target" \
       --threads "$threads" --probe-spp "$probe_spp" --noise-check "$nc" >"$dir/blender.log" 2>&1 && [[ -f "$dir/scene_done.json" ]]; then
     done_count=$((done_count + 1))
-    echo "scene $s done in $(($(date +%s) - start)) s ($done_count/$count)"
+    echo "scene $s done in $(($(date +%s) - start)) s ($done_count done)"
   else
     failed=$((failed + 1))
     echo "scene $s FAILED after $(($(date +%s) - start)) s: see $dir/blender.log" >&2
@@ -72,5 +77,5 @@ for ((i = 0; i < count; i++)); do
 done
 "$py" "$here/blender/world_index.py" "$out" "$seed" "$count" "$size" "$spp" "$probe_spp" "$threads" \
     "$max_spp" "$noise_target"
-echo "$done_count of $count scenes complete in $out ($failed failed this run)"
+echo "$done_count of $wanted scenes complete in $out ($failed failed this run)"
 [[ $failed -eq 0 ]]

@@ -31,6 +31,20 @@ fs::path scratch(const std::string& name) {
   return p;
 }
 
+// --held-only renders the held split's seeds alone: seeds 1 and 2 are both
+// tune, so nothing is rendered and the index lists no scene.
+TEST(BlenderWorld, HeldOnlySkipsTheTuneSplitsSeeds) {
+  if (!have_blender()) GTEST_SKIP() << "blender is not installed (scripts/setup.sh installs it)";
+  const fs::path dir = scratch("held_only");
+  const auto made = run_shell("PROPCAM=" + std::string(PROPCAM_CLI) + " bash " + source("scripts/make_blender_world.sh") +
+                              " --out " + dir.string() + " --count 2 --seed 1 --held-only 2>&1");
+  ASSERT_EQ(made.exit_code, 0) << made.out;
+  EXPECT_NE(made.out.find("0 of 0 scenes complete"), std::string::npos) << made.out;
+  EXPECT_FALSE(fs::exists(dir / "scene_1"));
+  EXPECT_FALSE(fs::exists(dir / "scene_2"));
+  EXPECT_TRUE(fs::exists(dir / "world.json"));
+}
+
 // One small scene, made and rendered by Blender alone, read and scored by the bench.
 TEST(BlenderWorld, AGeneratedSceneLoadsWithItsTruthAndIsScored) {
   if (!have_blender()) GTEST_SKIP() << "blender is not installed (scripts/setup.sh installs it)";
