@@ -833,9 +833,12 @@ ProbeResult score_light_probe(const PanoramaView& view, const inference::SceneMo
   settings.samples_per_pixel = o.spp;
   settings.max_bounces = o.bounces;
   settings.seed = o.seed;
-  const cv::Mat scene_photo = capture::srgb_linear_to_response_linear(view.photo_linear, estimate.gamma);
-  const CompositeResult composite = composite_prop(scene_photo, estimate, mesh, world->placement, settings);
-  const cv::Mat est = clip01(capture::response_linear_to_srgb_linear(composite.composite_linear, estimate.gamma));
+  const auto composite_of = [&](const inference::SceneModel& scene) {
+    const cv::Mat scene_photo = capture::srgb_linear_to_response_linear(view.photo_linear, scene.gamma);
+    const CompositeResult composite = composite_prop(scene_photo, scene, mesh, world->placement, settings);
+    return clip01(capture::response_linear_to_srgb_linear(composite.composite_linear, scene.gamma));
+  };
+  const cv::Mat est = composite_of(estimate);
 
   // The truth: the same spheres at the same place relative to the camera,
   // under the panorama alone (exposed as the photo), through the estimate's
@@ -872,11 +875,8 @@ ProbeResult score_light_probe(const PanoramaView& view, const inference::SceneMo
 
   score_spheres(est, truth, mask, result.si_scale, result.spheres);
   // The Khan-style baseline at the same spot, scored the same way.
-  const inference::SceneModel khan = khan_baseline(estimate, view.photo_linear);
-  const CompositeResult khan_composite =
-      composite_prop(capture::srgb_linear_to_response_linear(view.photo_linear, khan.gamma), khan, mesh, world->placement, settings);
-  score_spheres(clip01(capture::response_linear_to_srgb_linear(khan_composite.composite_linear, khan.gamma)), truth, mask,
-                result.khan_si_scale, result.khan_spheres);
+  score_spheres(composite_of(khan_baseline(estimate, view.photo_linear)), truth, mask, result.khan_si_scale,
+                result.khan_spheres);
   result.estimate = to_display(est);
   // For the eye, the truth's rendered box pasted into the photo (the box's
   // background is the panorama itself, unquantised).

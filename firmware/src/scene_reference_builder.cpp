@@ -40,11 +40,11 @@ const std::vector<LabelledPanorama>& pmndrs_panoramas() {
   return list;
 }
 
+std::string default_pmndrs_dir() { return std::string(PROPCAM_SOURCE_DIR) + "/build/pmndrs_hdri"; }
+
 // pmndrs' "sunrise" is blender-data's "sunrise" (another file and resolution,
 // same scene and yaw): correlating high-passed log luminance over all yaw
 // shifts at 128x64 gives this pair 0.91, every other pair of the 26 at most 0.55.
-std::string default_pmndrs_dir() { return std::string(PROPCAM_SOURCE_DIR) + "/build/pmndrs_hdri"; }
-
 std::string panorama_group(const std::string& catalogue_name) {
   return catalogue_name == "pmndrs_sunrise" ? "sunrise" : catalogue_name;
 }

@@ -1,12 +1,12 @@
 #include "world_metrics.h"
 
-#include "propcam/inference/lighting.h"
-
 #include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <opencv2/imgproc.hpp>
 #include <vector>
+
+#include "propcam/inference/lighting.h"
 
 namespace propcam::firmware {
 namespace {

@@ -340,8 +340,6 @@ OrientationMap estimate_orientation_map(const std::vector<LineSegment>& lines, c
         (up > 0 ? ceiling : floor) += 1;
       }
   const double total = static_cast<double>(out_w) * out_h;
-  out.ceiling_fraction = ceiling / total;
-  out.floor_fraction = floor / total;
   StageReport& r = out.report;
   r.stage = "orientation_map";
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -353,8 +351,8 @@ OrientationMap estimate_orientation_map(const std::vector<LineSegment>& lines, c
                {"fraction_x", counts[1] / total},
                {"fraction_y", counts[2] / total},
                {"fraction_z", counts[3] / total},
-               {"ceiling_fraction", out.ceiling_fraction},
-               {"floor_fraction", out.floor_fraction},
+               {"ceiling_fraction", ceiling / total},
+               {"floor_fraction", floor / total},
                {"lines_used", swept_lines},
                {"lines_labelled", static_cast<int>(segments.size())},
                {"width", out_w},

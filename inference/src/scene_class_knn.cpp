@@ -1,5 +1,4 @@
 #include "propcam/inference/scene_class_knn.h"
-#include "propcam/inference/scene_classifier.h"
 
 #include <algorithm>
 #include <chrono>
@@ -12,6 +11,7 @@
 #include <stdexcept>
 
 #include "atomic_file.h"
+#include "propcam/inference/scene_classifier.h"
 
 namespace propcam::inference {
 namespace {
@@ -221,7 +221,7 @@ bool classify_indoor_combined(const cv::Mat& photo_linear, const render::Pinhole
   double score = 0;
   if (classifier) report.details["svm_indoor_score"] = score = classifier->indoor_score(descriptor);
   bool indoor = sky_says_indoor;
-  const auto share = [](double v) { return std::to_string(v).substr(0, 5); };
+  const auto short_number = [](double v) { return std::to_string(v).substr(0, 5); };
   if (!sky_says_indoor && sky.fraction >= options.sky_decides_fraction) {
     report.details["method"] = "sky";
     report.why = "sky covers " + std::to_string(static_cast<int>(std::lround(100 * sky.fraction))) + "% of the frame: outdoor";
@@ -229,11 +229,11 @@ bool classify_indoor_combined(const cv::Mat& photo_linear, const render::Pinhole
     // A tie goes indoor, the class that asks nothing of the sky.
     indoor = score >= 0;
     report.details["method"] = "svm";
-    report.why = std::string("SVM: ") + (indoor ? "indoor" : "outdoor") + " (score " + share(score) + ")";
+    report.why = std::string("SVM: ") + (indoor ? "indoor" : "outdoor") + " (score " + short_number(score) + ")";
   } else {
     indoor = knn.indoor;
     report.details["method"] = "knn";
-    report.why = std::string("k-NN: ") + (indoor ? "indoor" : "outdoor") + " (indoor share " + share(knn.indoor_share) + ")";
+    report.why = std::string("k-NN: ") + (indoor ? "indoor" : "outdoor") + " (indoor share " + short_number(knn.indoor_share) + ")";
   }
   report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (sky_out) *sky_out = std::move(sky);

@@ -24,6 +24,12 @@ bool have_blender() { return run_shell("command -v blender >/dev/null 2>&1").exi
 
 std::string source(const std::string& path) { return std::string(PROPCAM_SOURCE_DIR) + "/" + path; }
 
+// scripts/make_blender_world.sh --out DIR ARGS, with this build's propcam; stderr joins stdout.
+propcam::test::CliRun make_blender_world(const fs::path& dir, const std::string& args) {
+  return run_shell("PROPCAM=" + std::string(PROPCAM_CLI) + " bash " + source("scripts/make_blender_world.sh") + " --out " +
+                   dir.string() + " " + args + " 2>&1");
+}
+
 fs::path scratch(const std::string& name) {
   const fs::path p = fs::path(PROPCAM_BINARY_DIR) / "test_blender_world" / name;
   fs::remove_all(p);
@@ -36,8 +42,7 @@ fs::path scratch(const std::string& name) {
 TEST(BlenderWorld, HeldOnlySkipsTheTuneSplitsSeeds) {
   if (!have_blender()) GTEST_SKIP() << "blender is not installed (scripts/setup.sh installs it)";
   const fs::path dir = scratch("held_only");
-  const auto made = run_shell("PROPCAM=" + std::string(PROPCAM_CLI) + " bash " + source("scripts/make_blender_world.sh") +
-                              " --out " + dir.string() + " --count 2 --seed 1 --held-only 2>&1");
+  const auto made = make_blender_world(dir, "--count 2 --seed 1 --held-only");
   ASSERT_EQ(made.exit_code, 0) << made.out;
   EXPECT_NE(made.out.find("0 of 0 scenes complete"), std::string::npos) << made.out;
   EXPECT_FALSE(fs::exists(dir / "scene_1"));
@@ -50,9 +55,8 @@ TEST(BlenderWorld, AGeneratedSceneLoadsWithItsTruthAndIsScored) {
   if (!have_blender()) GTEST_SKIP() << "blender is not installed (scripts/setup.sh installs it)";
   const fs::path dir = scratch("world");
   // Seed 2: an indoor scene of the tune split.
-  const auto made = run_shell("PROPCAM=" + std::string(PROPCAM_CLI) + " bash " + source("scripts/make_blender_world.sh") +
-                              " --out " + dir.string() + " --count 1 --seed 2 --size 96x72 --spp 16 --max-spp 16 --probe-spp 16 "
-                              "--noise-check 0 --threads 2 2>&1");
+  const auto made = make_blender_world(
+      dir, "--count 1 --seed 2 --size 96x72 --spp 16 --max-spp 16 --probe-spp 16 --noise-check 0 --threads 2");
   ASSERT_EQ(made.exit_code, 0) << made.out;
   const std::vector<WorldScene> scenes = load_blender_world(dir.string(), "");
   ASSERT_EQ(scenes.size(), 1u);

@@ -49,9 +49,10 @@ struct OrientationMapOptions {
 
 struct OrientationMap {
   cv::Mat labels;      // CV_8U, values SurfaceOrientation, at options.width x round(width*h/w)
-  double ceiling_fraction = 0.0;  // of the map: labelled kNormalY and seen above the horizon
-  double floor_fraction = 0.0;    // labelled kNormalY and seen below it
-  StageReport report;  // stage "orientation_map"; details: coverage (fraction labelled), per-label fractions, lines used, seconds
+  // stage "orientation_map"; details: coverage (fraction labelled), per-label
+  // fractions, ceiling_fraction / floor_fraction (kNormalY above / below the
+  // horizon), lines used, seconds
+  StageReport report;
 };
 
 // lines in full-resolution pixels, line_labels from CameraEstimate::line_labels
