@@ -136,10 +136,17 @@ struct Row {
   std::function<void(inference::InferenceOptions&)> apply;  // null: the default inference
   int spp = 0;                                              // 0: the bench's
   bool truth = false;  // the world's truth stands in for the inference (own and Blender worlds)
+  bool panorama = true;  // also measured on the panorama world
 };
 
-std::vector<Row> rows_for(const std::vector<std::string>& sweeps) {
-  const auto wanted = [&](const std::string& s) { return std::find(sweeps.begin(), sweeps.end(), s) != sweeps.end(); };
+bool wants_sweep(const std::vector<std::string>& sweeps, const std::string& s) {
+  return std::find(sweeps.begin(), sweeps.end(), s) != sweeps.end();
+}
+
+// `panoramas_only_classifier`: the light classifier trained without the
+// Blender world's photos (the "lights" sweep).
+std::vector<Row> rows_for(const std::vector<std::string>& sweeps, const std::string& panoramas_only_classifier) {
+  const auto wanted = [&](const std::string& s) { return wants_sweep(sweeps, s); };
   std::vector<Row> out{{"default", "default", nullptr, 0}};
   if (wanted("spp"))
     for (int spp : {16, 256}) out.push_back({"spp", std::to_string(spp) + " spp composite", nullptr, spp});
@@ -156,6 +163,14 @@ std::vector<Row> rows_for(const std::vector<std::string>& sweeps) {
       out.push_back({"fit", std::to_string(spp) + " spp basis renders", [spp](inference::InferenceOptions& o) {
                        o.lighting.fit_samples_per_pixel = spp;
                      }});
+  // The panorama world's views are scored with leave-one-out classifiers
+  // of its own, so this row is measured on the other worlds only.
+  if (wanted("lights"))
+    out.push_back({"lights", "light classifier from panoramas only",
+                   [panoramas_only_classifier](inference::InferenceOptions& o) {
+                     o.lighting.light_classifier = panoramas_only_classifier;
+                   },
+                   0, false, false});
   if (wanted("geometry"))
     out.push_back({"geometry", "box layout only (no depth solve)", [](inference::InferenceOptions& o) {
                      o.geometry.solve = false;
@@ -168,11 +183,37 @@ std::vector<Row> rows_for(const std::vector<std::string>& sweeps) {
   return out;
 }
 
-// A Blender-world scene of the tune split may be among the scene-class
-// references (build-scene-refs --blender-world): leave its own photo out.
-inference::InferenceOptions options_for(const WorldScene& w, const inference::InferenceOptions& given) {
+// The committed models learnt from the Blender world's tune photos: the
+// scene-class references hold them (build-scene-refs --blender-world) and
+// the light classifier trained on them (train-light-classifier
+// --blender-world). A tune scene is scored without its own photo: its group
+// left out of the references, the light classifier of its fold.
+struct LeftOut {
+  std::vector<std::string> light_classifier_of_fold;  // empty: no tune scene scored
+  int folds = 1;
+};
+
+LeftOut left_out_models(const WorldsBenchOptions& o, const std::vector<WorldScene>& scenes) {
+  LeftOut out;
+  const bool any_tune = std::any_of(scenes.begin(), scenes.end(),
+                                    [](const WorldScene& w) { return w.world == "blender" && w.split == "tune"; });
+  if (!any_tune) return out;
+  LightTrainingSpec spec = committed_light_training_spec(
+      o.panorama.pmndrs_dir.empty() ? default_pmndrs_dir() : o.panorama.pmndrs_dir, o.blender_dir);
+  spec.quiet = o.quiet;
+  out.folds = spec.blender_folds;
+  out.light_classifier_of_fold = blender_fold_light_classifiers(spec, o.panorama.cache_dir);
+  return out;
+}
+
+inference::InferenceOptions options_for(const WorldScene& w, const inference::InferenceOptions& given,
+                                        const LeftOut& left_out) {
   inference::InferenceOptions options = given;
-  if (w.world == "blender") options.scene_class_left_out = blender_scene_group(w.name);
+  if (w.world != "blender") return options;
+  options.scene_class_left_out = blender_scene_group(w.name);
+  if (w.split == "tune" && options.lighting.light_classifier.empty() && !left_out.light_classifier_of_fold.empty())
+    options.lighting.light_classifier =
+        left_out.light_classifier_of_fold.at(blender_light_fold(w.name, left_out.folds));
   return options;
 }
 
@@ -180,7 +221,7 @@ inference::InferenceOptions options_for(const WorldScene& w, const inference::In
 
 json score_world_scene(const WorldScene& w, const inference::InferenceOptions& options, int spp) {
   const auto start = Clock::now();
-  const inference::SceneModel est = inference::infer_scene(w.photo_linear, options_for(w, options));
+  const inference::SceneModel est = inference::infer_scene(w.photo_linear, options);
   return score_world_estimate(w, est, seconds_since(start), spp);
 }
 
@@ -359,10 +400,20 @@ json run_worlds_bench(const WorldsBenchOptions& o) {
     if (o.max_scenes > 0 && static_cast<int>(blender.size()) > o.max_scenes) blender.resize(o.max_scenes);
     for (auto& s : blender) scenes.push_back(std::move(s));
   }
+  const LeftOut left_out = left_out_models(o, scenes);
+  std::string panoramas_only_classifier;
+  if (wants_sweep(o.sweeps, "lights")) {
+    progress.stage("bench worlds: the light classifier from panoramas only");
+    LightTrainingSpec spec = committed_light_training_spec(
+        o.panorama.pmndrs_dir.empty() ? default_pmndrs_dir() : o.panorama.pmndrs_dir, o.blender_dir);
+    spec.blender_world.clear();
+    spec.quiet = o.quiet;
+    panoramas_only_classifier = cached_light_classifier(spec, o.panorama.cache_dir, "panoramas_only");
+  }
   json result_rows = json::array();
   // The default inference of each scene, kept for the rows that change only the composite.
   std::vector<std::pair<inference::SceneModel, double>> default_estimates(scenes.size());
-  for (const Row& row : rows_for(o.sweeps)) {
+  for (const Row& row : rows_for(o.sweeps, panoramas_only_classifier)) {
     json worlds = json::object();
     std::map<std::string, json> per_world;
     for (size_t i = 0; i < scenes.size(); ++i) {
@@ -378,20 +429,20 @@ json run_worlds_bench(const WorldsBenchOptions& o) {
       if (row.apply) {
         inference::InferenceOptions options;
         row.apply(options);
-        per_world[s.world].push_back(score_world_scene(s, options, spp));
+        per_world[s.world].push_back(score_world_scene(s, options_for(s, options, left_out), spp));
         continue;
       }
       auto& [estimate, seconds] = default_estimates[i];
       if (estimate.width == 0) {
         const auto start = Clock::now();
         const inference::InferenceOptions defaults;
-        estimate = inference::infer_scene(s.photo_linear, options_for(s, defaults));
+        estimate = inference::infer_scene(s.photo_linear, options_for(s, defaults, left_out));
         seconds = seconds_since(start);
       }
       per_world[s.world].push_back(score_world_estimate(s, estimate, seconds, spp));
     }
     for (auto& [world, rows] : per_world) worlds[world] = {{"summary", summarise_world(rows)}, {"scenes", rows}};
-    if (wants("panorama") && !row.truth && (row.apply || row.sweep == "default")) {
+    if (wants("panorama") && row.panorama && !row.truth && (row.apply || row.sweep == "default")) {
       progress.stage("bench worlds: " + row.label + ", panorama views");
       PanoramaWorldOptions p = o.panorama;
       p.quiet = o.quiet;
@@ -510,7 +561,7 @@ CLI::App* add_bench_worlds_command(CLI::App& bench, WorldsBenchArgs& a) {
   cmd->add_option("--own-spp", a.options.own.spp, "Own world: samples per pixel of photos and insertions")->check(CLI::Range(1, 4096));
   cmd->add_option("--panoramas", a.options.panorama.panoramas, "Panorama world: names or EXR files (default: all 26)")->delimiter(',');
   cmd->add_option("--views", a.options.panorama.views_per_panorama, "Panorama world: views per panorama")->check(CLI::PositiveNumber);
-  cmd->add_option("--sweeps", a.sweeps, "Extra rows: comma-separated subset of spp,albedo,fit,geometry,oracle (the true scene)");
+  cmd->add_option("--sweeps", a.sweeps, "Extra rows: comma-separated subset of spp,albedo,fit,lights,geometry,oracle (the true scene)");
   cmd->add_option("--plot", a.options.plot_dir, "Write worlds.png (gnuplot) to this folder");
   cmd->add_flag("--json", a.json_out, "Machine-readable output");
   return cmd;
@@ -519,7 +570,7 @@ CLI::App* add_bench_worlds_command(CLI::App& bench, WorldsBenchArgs& a) {
 int run_bench_worlds_command(WorldsBenchArgs a) {
   a.options.worlds = parse_sweeps(a.worlds, {"own", "blender", "panorama"});
   if (a.options.worlds.empty()) throw std::invalid_argument("--worlds names no world");
-  a.options.sweeps = parse_sweeps(a.sweeps, {"spp", "albedo", "fit", "geometry", "oracle"});
+  a.options.sweeps = parse_sweeps(a.sweeps, {"spp", "albedo", "fit", "lights", "geometry", "oracle"});
   parse_bench_size(a.own_size, 16, a.options.own.width, a.options.own.height);
   a.options.quiet = a.json_out;
   const json result = run_worlds_bench(a.options);

@@ -21,7 +21,7 @@ namespace propcam::firmware {
 
 struct WorldsBenchOptions {
   std::vector<std::string> worlds = {"own", "blender", "panorama"};
-  std::string blender_dir = "build/worlds/blender";
+  std::string blender_dir = kDefaultBlenderWorldDir;
   std::string split = "tune";  // of the Blender world: tune | held | all
   OwnWorldOptions own;
   PanoramaWorldOptions panorama;
@@ -32,8 +32,9 @@ struct WorldsBenchOptions {
   bool quiet = false;
 };
 
-// Scores one scene of the own or Blender world under `options` (inference
-// and composite at `spp`); a JSON row (worlds.md lists its keys).
+// Scores one scene of the own or Blender world under `options` as given
+// (inference and composite at `spp`; run_worlds_bench leaves a tune scene's
+// photo out of the models first); a JSON row (worlds.md lists its keys).
 nlohmann::json score_world_scene(const WorldScene& scene, const inference::InferenceOptions& options, int spp);
 // The same on an estimate already made (in `inference_seconds`).
 nlohmann::json score_world_estimate(const WorldScene& scene, const inference::SceneModel& estimate,

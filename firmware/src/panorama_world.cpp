@@ -17,6 +17,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "cache_key.h"
 #include "compositor.h"
 #include "progress.h"
 #include "propcam/capture/image_file.h"
@@ -175,33 +176,6 @@ cv::Mat load_panorama_rgb3(const std::string& file) {
   return rgb;
 }
 
-std::string file_stamp(const std::string& path) {
-  std::error_code ec;
-  const auto size = fs::file_size(path, ec);
-  return ec ? std::string("missing") : std::to_string(size);
-}
-
-bool key_matches(const fs::path& key_file, const json& key) {
-  std::ifstream in(key_file);
-  if (!in) return false;
-  try {
-    json stored;
-    in >> stored;
-    return stored == key;
-  } catch (const std::exception&) {
-    return false;
-  }
-}
-
-void write_key(const fs::path& key_file, const json& key) {
-  const fs::path tmp = key_file.string() + ".tmp";
-  {
-    std::ofstream out(tmp);
-    out << key.dump(2) << "\n";
-  }
-  fs::rename(tmp, key_file);
-}
-
 // ---------------------------------------------------------------------------
 // Leave one out: the light classifier.
 
@@ -259,27 +233,23 @@ inference::LabelledFeatures panorama_features(const std::string& entry, const Li
 }
 
 // train_light_classifier's training set, with the panoramas of `skip` left
-// out: every source superpixel and every negative_stride-th other one, the
-// count running over the panoramas in the spec's order.
+// out (the spec's Blender photos, if any, all kept: they are no panorama's).
 inference::LightClassifier train_without(const LightTrainingSpec& spec, const std::set<std::string>& skip_entries,
                                          const fs::path& feature_dir, Progress& progress) {
-  cv::Mat features;
-  std::vector<int> labels;
-  int negatives = 0;
+  std::vector<inference::LabelledFeatures> panoramas;
   for (const auto& entry : spec.panoramas) {
     if (skip_entries.count(entry)) continue;
     progress.stage("leave one out: light classifier features of " + entry);
-    const inference::LabelledFeatures f = panorama_features(entry, spec, feature_dir);
-    for (int r = 0; r < f.features.rows; ++r) {
-      const int label = f.labels.at<int>(r);
-      if (label == 0 && negatives++ % std::max(1, spec.negative_stride) != 0) continue;
-      features.push_back(f.features.row(r));
-      labels.push_back(label);
-    }
+    panoramas.push_back(panorama_features(entry, spec, feature_dir));
   }
-  const cv::Mat label_mat = cv::Mat(labels, true).reshape(1, static_cast<int>(labels.size()));
-  progress.stage("leave one out: training the light classifier on " + std::to_string(features.rows) + " superpixels");
-  return inference::LightClassifier::train(features, label_mat, spec.trees, spec.depth);
+  const std::vector<LightTrainingGroup> blender = blender_light_groups(spec);
+  std::vector<const inference::LabelledFeatures*> groups;
+  for (const auto& f : panoramas) groups.push_back(&f);
+  for (int copy = 0; copy < std::max(1, spec.blender_copies); ++copy)
+    for (const auto& g : blender) groups.push_back(&g.features);
+  const inference::LabelledFeatures set = light_training_set(groups, spec.negative_stride);
+  progress.stage("leave one out: training the light classifier on " + std::to_string(set.features.rows) + " superpixels");
+  return inference::LightClassifier::train(set.features, set.labels, spec.trees, spec.depth);
 }
 
 // ---------------------------------------------------------------------------
@@ -536,12 +506,13 @@ std::vector<std::string> panorama_world_names() {
   return out;
 }
 
-LightTrainingSpec committed_light_training_spec(const std::string& pmndrs_dir) {
-  LightTrainingSpec spec;  // scripts/train_light_classifier.sh: the defaults, all 26 panoramas
+LightTrainingSpec committed_light_training_spec(const std::string& pmndrs_dir, const std::string& blender_world) {
+  LightTrainingSpec spec;  // scripts/train_light_classifier.sh: the defaults, all 26 panoramas, the Blender world
   spec.panoramas = default_training_panoramas();
   for (const auto& [n, indoor] : pmndrs_panoramas()) spec.panoramas.push_back((fs::path(pmndrs_dir) / (n + ".exr")).string());
   // The script lists "$extra"/*.exr: the shell's sorted order, not the table's.
   std::sort(spec.panoramas.begin() + static_cast<long>(default_training_panoramas().size()), spec.panoramas.end());
+  if (fs::exists(fs::path(blender_world) / "world.json")) spec.blender_world = blender_world;
   spec.quiet = true;
   return spec;
 }
@@ -639,7 +610,12 @@ inference::InferenceOptions leave_one_out_options(const PanoramaView& view, cons
     key["trees"] = spec.trees;
     key["depth"] = spec.depth;
     key["panoramas"] = kept;
-    json part = {{"left_out", std::vector<std::string>(skip.begin(), skip.end())}};
+    if (!spec.blender_world.empty())
+      key["blender_world"] = {fs::absolute(spec.blender_world).lexically_normal().string(),
+                              file_stamp((fs::path(spec.blender_world) / "world.json").string()), spec.blender_copies};
+    json part = {{"left_out", std::vector<std::string>(skip.begin(), skip.end())},
+                 {"blender_world", spec.blender_world.empty() ? json("none")
+                                                              : json(spec.blender_world)}};
     const fs::path model = dir / "light_classifier.yml.gz", key_path = dir / "light_classifier.json";
     if (!skip.empty()) classifier_used = key;
     if (skip.empty()) {

@@ -24,6 +24,7 @@
 #include "ibl_training.h"
 #include "light_probe.h"
 #include "light_training.h"
+#include "world_scenes.h"
 #include "propcam/inference/infer.h"
 #include "propcam/inference/scene_model.h"
 #include "propcam/render/camera.h"
@@ -34,8 +35,11 @@ namespace propcam::firmware {
 std::vector<std::string> panorama_world_names();
 
 // The light classifier's training spec of scripts/train_light_classifier.sh
-// (all 26 panoramas; pmndrs ones as files under `pmndrs_dir`).
-LightTrainingSpec committed_light_training_spec(const std::string& pmndrs_dir);
+// (all 26 panoramas, pmndrs ones as files under `pmndrs_dir`; the tune
+// photos of the Blender world in `blender_world`, left out of the spec when
+// that world does not exist).
+LightTrainingSpec committed_light_training_spec(const std::string& pmndrs_dir,
+                                                const std::string& blender_world = kDefaultBlenderWorldDir);
 // The IBL ranker's training spec of scripts/train_ibl_ranker.sh (the library
 // of blender-data's 8, the 18 pmndrs with their labels, procedural skies and rooms).
 IblTrainingSpec committed_ibl_training_spec(const std::string& pmndrs_dir);

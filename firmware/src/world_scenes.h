@@ -71,6 +71,9 @@ struct OwnWorldOptions {
 };
 std::vector<WorldScene> make_own_world(const OwnWorldOptions& options);
 
+// Where scripts/make_blender_world.sh writes the Blender world by default.
+inline constexpr const char* kDefaultBlenderWorldDir = "build/worlds/blender";
+
 // Reads the Blender world's scene folders under `dir` (world.json lists
 // them) of `split` ("tune", "held" or "" for both). Throws
 // std::runtime_error naming the folder and the file for a missing or bad

@@ -10,6 +10,7 @@
 
 #include "bench_worlds.h"
 #include "cli_run.h"
+#include "light_training.h"
 #include "propcam/inference/scene_model.h"
 #include "world_scenes.h"
 
@@ -50,17 +51,31 @@ TEST(BlenderWorld, HeldOnlySkipsTheTuneSplitsSeeds) {
   EXPECT_TRUE(fs::exists(dir / "world.json"));
 }
 
-// One small scene, made and rendered by Blender alone, read and scored by the bench.
+// Small scenes, made and rendered by Blender alone, read and scored by the
+// bench; the tune one (never the held one) joins the light classifier's training.
 TEST(BlenderWorld, AGeneratedSceneLoadsWithItsTruthAndIsScored) {
   if (!have_blender()) GTEST_SKIP() << "blender is not installed (scripts/setup.sh installs it)";
   const fs::path dir = scratch("world");
-  // Seed 2: an indoor scene of the tune split.
+  // Seed 2: an indoor scene of the tune split, with a table lamp; seed 3: one of the held split.
   const auto made = make_blender_world(
-      dir, "--count 1 --seed 2 --size 96x72 --spp 16 --max-spp 16 --probe-spp 16 --noise-check 0 --threads 2");
+      dir, "--count 2 --seed 2 --size 96x72 --spp 16 --max-spp 16 --probe-spp 16 --noise-check 0 --threads 2");
   ASSERT_EQ(made.exit_code, 0) << made.out;
-  const std::vector<WorldScene> scenes = load_blender_world(dir.string(), "");
+  const std::vector<WorldScene> scenes = load_blender_world(dir.string(), "tune");
   ASSERT_EQ(scenes.size(), 1u);
+  ASSERT_EQ(load_blender_world(dir.string(), "held").size(), 1u);
   const WorldScene& w = scenes[0];
+
+  // The light classifier learns from the tune photo with its true emitters, never from the held one.
+  LightTrainingSpec spec;
+  spec.blender_world = dir.string();
+  spec.classifier.superpixel_px = 4;  // the lamp's shade is 9x6 pixels at 96x72
+  spec.quiet = true;
+  const std::vector<LightTrainingGroup> groups = blender_light_groups(spec);
+  ASSERT_EQ(groups.size(), 1u);
+  EXPECT_EQ(groups[0].name, "scene_2");
+  EXPECT_EQ(groups[0].fold, 2 % spec.blender_folds);
+  EXPECT_GT(cv::countNonZero(w.emitters), 0) << "the lamp's shade is seen";
+  EXPECT_GT(cv::countNonZero(groups[0].features.labels), 0) << "its superpixels are labelled sources";
   EXPECT_EQ(w.world, "blender");
   EXPECT_EQ(w.split, "tune");
   EXPECT_EQ(w.photo_display.size(), cv::Size(96, 72));
