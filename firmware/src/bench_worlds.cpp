@@ -193,14 +193,20 @@ struct LeftOut {
   int folds = 1;
 };
 
+// The committed light classifier's training spec, with this bench's Blender world.
+LightTrainingSpec committed_light_spec(const WorldsBenchOptions& o) {
+  LightTrainingSpec spec = committed_light_training_spec(
+      o.panorama.pmndrs_dir.empty() ? default_pmndrs_dir() : o.panorama.pmndrs_dir, o.blender_dir);
+  spec.quiet = o.quiet;
+  return spec;
+}
+
 LeftOut left_out_models(const WorldsBenchOptions& o, const std::vector<WorldScene>& scenes) {
   LeftOut out;
   const bool any_tune = std::any_of(scenes.begin(), scenes.end(),
                                     [](const WorldScene& w) { return w.world == "blender" && w.split == "tune"; });
   if (!any_tune) return out;
-  LightTrainingSpec spec = committed_light_training_spec(
-      o.panorama.pmndrs_dir.empty() ? default_pmndrs_dir() : o.panorama.pmndrs_dir, o.blender_dir);
-  spec.quiet = o.quiet;
+  const LightTrainingSpec spec = committed_light_spec(o);
   out.folds = spec.blender_folds;
   out.light_classifier_of_fold = blender_fold_light_classifiers(spec, o.panorama.cache_dir);
   return out;
@@ -404,10 +410,8 @@ json run_worlds_bench(const WorldsBenchOptions& o) {
   std::string panoramas_only_classifier;
   if (wants_sweep(o.sweeps, "lights")) {
     progress.stage("bench worlds: the light classifier from panoramas only");
-    LightTrainingSpec spec = committed_light_training_spec(
-        o.panorama.pmndrs_dir.empty() ? default_pmndrs_dir() : o.panorama.pmndrs_dir, o.blender_dir);
+    LightTrainingSpec spec = committed_light_spec(o);
     spec.blender_world.clear();
-    spec.quiet = o.quiet;
     panoramas_only_classifier = cached_light_classifier(spec, o.panorama.cache_dir, "panoramas_only");
   }
   json result_rows = json::array();

@@ -32,10 +32,7 @@ std::vector<Panorama> load_views(const LightTrainingSpec& spec, Progress& progre
   std::vector<Panorama> out;
   for (const auto& name : spec.panoramas) {
     progress.stage("light classifier: views of " + name);
-    // A name is one of blender-data's panoramas; anything with a path or an
-    // extension is a file (e.g. scripts/fetch_pmndrs_hdri.sh's).
-    const bool is_file = name.find('/') != std::string::npos || name.find('.') != std::string::npos;
-    const cv::Mat latlong = capture::read_image_float(is_file ? name : panorama_path(name));
+    const cv::Mat latlong = capture::read_image_float(panorama_entry_file(name));
     cv::Mat rgb;
     std::vector<cv::Mat> ch;
     cv::split(latlong, ch);
@@ -68,8 +65,10 @@ std::vector<BlenderScene> load_blender_scenes(const LightTrainingSpec& spec, Pro
   return out;
 }
 
-LightTrainingGroup group_of(const BlenderScene& s, const LightTrainingSpec& spec) {
-  return {s.name, s.fold, inference::labelled_features({s.view}, spec.classifier)};
+std::vector<LightTrainingGroup> groups_of(const std::vector<BlenderScene>& scenes, const LightTrainingSpec& spec) {
+  std::vector<LightTrainingGroup> out;
+  for (const auto& s : scenes) out.push_back({s.name, s.fold, inference::labelled_features({s.view}, spec.classifier)});
+  return out;
 }
 
 struct Counts {
@@ -79,8 +78,7 @@ struct Counts {
   bool objects = false;  // emitters counted (Blender scenes)
   void add(const Counts& o) {
     tp += o.tp, fp += o.fp, fn += o.fn, ms += o.ms, views += o.views;
-    emitters.truth += o.emitters.truth, emitters.found += o.emitters.found;
-    emitters.detected += o.emitters.detected, emitters.right += o.emitters.right;
+    emitters += o.emitters;
     objects |= o.objects;
   }
   json summary() const {
@@ -102,8 +100,7 @@ void count(const cv::Mat& predicted, const cv::Mat& truth, Counts& c, bool objec
   c.fp += cv::countNonZero(predicted & ~truth);
   c.fn += cv::countNonZero(~predicted & truth);
   if (!objects) return;
-  const EmitterCounts e = count_emitters(truth, predicted);
-  c.emitters.truth += e.truth, c.emitters.found += e.found, c.emitters.detected += e.detected, c.emitters.right += e.right;
+  c.emitters += count_emitters(truth, predicted);
   c.objects = true;
 }
 
@@ -144,10 +141,7 @@ HeldOutCounts score_views(const inference::LightClassifier& model, const std::ve
 
 json spec_key(const LightTrainingSpec& spec) {
   json panoramas = json::array();
-  for (const auto& p : spec.panoramas) {
-    const bool is_file = p.find('/') != std::string::npos || p.find('.') != std::string::npos;
-    panoramas.push_back({p, file_stamp(is_file ? p : panorama_path(p))});
-  }
+  for (const auto& p : spec.panoramas) panoramas.push_back({p, file_stamp(panorama_entry_file(p))});
   return {{"panoramas", panoramas}, {"views_per_turn", spec.views_per_turn}, {"pitches_deg", spec.pitches_deg},
           {"fov_deg", spec.horizontal_fov_deg}, {"size", {spec.width, spec.height}},
           {"negative_stride", spec.negative_stride}, {"trees", spec.trees}, {"depth", spec.depth},
@@ -160,6 +154,11 @@ json spec_key(const LightTrainingSpec& spec) {
 }
 
 }  // namespace
+
+std::string panorama_entry_file(const std::string& entry) {
+  const bool is_file = entry.find('/') != std::string::npos || entry.find('.') != std::string::npos;
+  return is_file ? entry : panorama_path(entry);
+}
 
 int blender_light_fold(const std::string& scene_name, int folds) {
   const auto at = scene_name.find_last_of('_');
@@ -174,9 +173,7 @@ int blender_light_fold(const std::string& scene_name, int folds) {
 
 std::vector<LightTrainingGroup> blender_light_groups(const LightTrainingSpec& spec) {
   Progress progress(spec.quiet);
-  std::vector<LightTrainingGroup> out;
-  for (const auto& s : load_blender_scenes(spec, progress)) out.push_back(group_of(s, spec));
-  return out;
+  return groups_of(load_blender_scenes(spec, progress), spec);
 }
 
 inference::LabelledFeatures light_training_set(const std::vector<const inference::LabelledFeatures*>& groups,
@@ -200,15 +197,10 @@ std::vector<std::string> default_training_panoramas() {
   return {"city", "courtyard", "forest", "interior", "night", "studio", "sunrise", "sunset"};
 }
 
-namespace {
-
-// Trains on the panoramas (but the one at `skip_panorama`, if any) and the
-// Blender groups (but those of `skip_fold`, if any), in that order.
-inference::LightClassifier train_on(const std::vector<Panorama>& panoramas, const std::vector<LightTrainingGroup>& blender,
-                                    const LightTrainingSpec& spec, int skip_panorama, int skip_fold, int* rows = nullptr) {
-  std::vector<const inference::LabelledFeatures*> groups;
-  for (size_t i = 0; i < panoramas.size(); ++i)
-    if (static_cast<int>(i) != skip_panorama) groups.push_back(&panoramas[i].features);
+inference::LightClassifier train_light_classifier_on(const std::vector<const inference::LabelledFeatures*>& panoramas,
+                                                     const std::vector<LightTrainingGroup>& blender,
+                                                     const LightTrainingSpec& spec, int skip_fold, int* rows) {
+  std::vector<const inference::LabelledFeatures*> groups = panoramas;
   for (int copy = 0; copy < std::max(1, spec.blender_copies); ++copy)
     for (const auto& g : blender)
       if (g.fold != skip_fold) groups.push_back(&g.features);
@@ -217,13 +209,24 @@ inference::LightClassifier train_on(const std::vector<Panorama>& panoramas, cons
   return inference::LightClassifier::train(set.features, set.labels, spec.trees, spec.depth);
 }
 
+namespace {
+
+// Trains on the panoramas (but the one at `skip_panorama`, if any) and the
+// Blender groups (but those of `skip_fold`, if any), in that order.
+inference::LightClassifier train_on(const std::vector<Panorama>& panoramas, const std::vector<LightTrainingGroup>& blender,
+                                    const LightTrainingSpec& spec, int skip_panorama, int skip_fold, int* rows = nullptr) {
+  std::vector<const inference::LabelledFeatures*> kept;
+  for (size_t i = 0; i < panoramas.size(); ++i)
+    if (static_cast<int>(i) != skip_panorama) kept.push_back(&panoramas[i].features);
+  return train_light_classifier_on(kept, blender, spec, skip_fold, rows);
+}
+
 }  // namespace
 
 inference::LightClassifier train_light_classifier(const LightTrainingSpec& spec) {
   Progress progress(spec.quiet);
   const std::vector<Panorama> panoramas = load_views(spec, progress);
-  std::vector<LightTrainingGroup> blender;
-  for (const auto& s : load_blender_scenes(spec, progress)) blender.push_back(group_of(s, spec));
+  const std::vector<LightTrainingGroup> blender = groups_of(load_blender_scenes(spec, progress), spec);
   progress.stage("light classifier: training");
   return train_on(panoramas, blender, spec, -1, -1);
 }
@@ -232,26 +235,27 @@ std::vector<std::string> blender_fold_light_classifiers(const LightTrainingSpec&
   const fs::path dir = fs::path(cache_dir) / "blender_light_folds";
   std::vector<std::string> paths;
   std::vector<int> missing;
-  for (int fold = 0; fold < spec.blender_folds; ++fold) {
-    json key = spec_key(spec);
+  const json spec_part = spec_key(spec);
+  const auto key_of = [&](int fold) {
+    json key = spec_part;
     key["fold_left_out"] = fold;
+    return key;
+  };
+  const auto key_path = [&](int fold) { return dir / ("light_classifier_fold" + std::to_string(fold) + ".json"); };
+  for (int fold = 0; fold < spec.blender_folds; ++fold) {
     const fs::path model = dir / ("light_classifier_fold" + std::to_string(fold) + ".yml.gz");
-    if (!key_matches(dir / ("light_classifier_fold" + std::to_string(fold) + ".json"), key) || !fs::exists(model))
-      missing.push_back(fold);
+    if (!key_matches(key_path(fold), key_of(fold)) || !fs::exists(model)) missing.push_back(fold);
     paths.push_back(model.string());
   }
   if (missing.empty()) return paths;
   Progress progress(spec.quiet);
   const std::vector<Panorama> panoramas = load_views(spec, progress);
-  std::vector<LightTrainingGroup> blender;
-  for (const auto& s : load_blender_scenes(spec, progress)) blender.push_back(group_of(s, spec));
+  const std::vector<LightTrainingGroup> blender = groups_of(load_blender_scenes(spec, progress), spec);
   fs::create_directories(dir);
   for (int fold : missing) {
     progress.stage("light classifier: training without the Blender fold " + std::to_string(fold));
     train_on(panoramas, blender, spec, -1, fold).save(paths[fold]);
-    json key = spec_key(spec);
-    key["fold_left_out"] = fold;
-    write_key(dir / ("light_classifier_fold" + std::to_string(fold) + ".json"), key);
+    write_key(key_path(fold), key_of(fold));
   }
   return paths;
 }
@@ -272,8 +276,7 @@ json evaluate_light_classifier(const LightTrainingSpec& spec) {
   Progress progress(spec.quiet);
   const std::vector<Panorama> panoramas = load_views(spec, progress);
   const std::vector<BlenderScene> scenes = load_blender_scenes(spec, progress);
-  std::vector<LightTrainingGroup> blender;
-  for (const auto& s : scenes) blender.push_back(group_of(s, spec));
+  const std::vector<LightTrainingGroup> blender = groups_of(scenes, spec);
   json held_out = json::array();
   HeldOutCounts panorama_total, blender_total;
   const auto skipped_if_one_class = [&](int skip_panorama, int skip_fold) -> bool {

@@ -43,6 +43,10 @@ struct LightTrainingGroup {
   inference::LabelledFeatures features;
 };
 
+// A panorama entry's file: an entry with a path or an extension is a file
+// (e.g. scripts/fetch_pmndrs_hdri.sh's), anything else one of blender-data's.
+std::string panorama_entry_file(const std::string& entry);
+
 // The fold a Blender scene (folder scene_<seed>) is held out in: its seed modulo `folds`.
 int blender_light_fold(const std::string& scene_name, int folds);
 
@@ -55,6 +59,14 @@ std::vector<LightTrainingGroup> blender_light_groups(const LightTrainingSpec& sp
 // negative_stride-th other one, the count running over the groups.
 inference::LabelledFeatures light_training_set(const std::vector<const inference::LabelledFeatures*>& groups,
                                                 int negative_stride);
+
+// The forest trained on the panoramas' superpixels, in order, then the
+// Blender groups but those of `skip_fold` (spec.blender_copies times over);
+// `rows`, if given, gets the training set's size. Every model of the
+// classifier (committed, leave-one-out, folds) is trained here.
+inference::LightClassifier train_light_classifier_on(const std::vector<const inference::LabelledFeatures*>& panoramas,
+                                                     const std::vector<LightTrainingGroup>& blender,
+                                                     const LightTrainingSpec& spec, int skip_fold = -1, int* rows = nullptr);
 
 // The 8 panoramas of blender-data.
 std::vector<std::string> default_training_panoramas();

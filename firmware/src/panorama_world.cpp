@@ -189,8 +189,7 @@ json classifier_spec_json(const LightTrainingSpec& s) {
 // (they do not depend on which panorama is left out).
 inference::LabelledFeatures panorama_features(const std::string& entry, const LightTrainingSpec& spec,
                                               const fs::path& dir) {
-  const bool is_file = entry.find('/') != std::string::npos || entry.find('.') != std::string::npos;
-  const std::string file = is_file ? entry : panorama_path(entry);
+  const std::string file = panorama_entry_file(entry);
   json key = classifier_spec_json(spec);
   key["file"] = fs::absolute(file).lexically_normal().string();
   key["bytes"] = file_stamp(file);
@@ -242,14 +241,10 @@ inference::LightClassifier train_without(const LightTrainingSpec& spec, const st
     progress.stage("leave one out: light classifier features of " + entry);
     panoramas.push_back(panorama_features(entry, spec, feature_dir));
   }
-  const std::vector<LightTrainingGroup> blender = blender_light_groups(spec);
-  std::vector<const inference::LabelledFeatures*> groups;
-  for (const auto& f : panoramas) groups.push_back(&f);
-  for (int copy = 0; copy < std::max(1, spec.blender_copies); ++copy)
-    for (const auto& g : blender) groups.push_back(&g.features);
-  const inference::LabelledFeatures set = light_training_set(groups, spec.negative_stride);
-  progress.stage("leave one out: training the light classifier on " + std::to_string(set.features.rows) + " superpixels");
-  return inference::LightClassifier::train(set.features, set.labels, spec.trees, spec.depth);
+  std::vector<const inference::LabelledFeatures*> kept;
+  for (const auto& f : panoramas) kept.push_back(&f);
+  progress.stage("leave one out: training the light classifier");
+  return train_light_classifier_on(kept, blender_light_groups(spec), spec);
 }
 
 // ---------------------------------------------------------------------------

@@ -50,6 +50,10 @@ CameraErrors camera_errors(const render::PinholeCamera& estimate, const render::
 struct EmitterCounts {
   int truth = 0, found = 0;      // recall = found / truth
   int detected = 0, right = 0;   // precision = right / detected
+  EmitterCounts& operator+=(const EmitterCounts& o) {
+    truth += o.truth, found += o.found, detected += o.detected, right += o.right;
+    return *this;
+  }
 };
 constexpr double kMinEmitterFraction = 1e-3;
 EmitterCounts count_emitters(const cv::Mat& truth, const cv::Mat& estimate, double min_fraction = kMinEmitterFraction,
