@@ -171,6 +171,14 @@ std::vector<Row> rows_for(const std::vector<std::string>& sweeps, const std::str
                      o.lighting.light_classifier = panoramas_only_classifier;
                    },
                    0, false, false});
+  if (wanted("outdoor_sources"))
+    for (const auto& [name, share] : {std::pair{"0.7", 0.7}, {"0.9", 0.9}})
+      out.push_back({"outdoor_sources", std::string("outdoor sources at a vote share of ") + name,
+                     [share](inference::InferenceOptions& o) { o.lighting.outdoor_source_threshold = share; }});
+  if (wanted("enclosure"))
+    out.push_back({"enclosure", "room closed (enclosure)", [](inference::InferenceOptions& o) {
+                     o.lighting.enclose_room = true;
+                   }});
   if (wanted("geometry"))
     out.push_back({"geometry", "box layout only (no depth solve)", [](inference::InferenceOptions& o) {
                      o.geometry.solve = false;
@@ -300,7 +308,11 @@ json score_world_estimate(const WorldScene& w, const inference::SceneModel& est,
       const CompositeWorld world = build_composite_world(est, prop, w.placement);
       const Eigen::Vector3f base = world.placed.base_world + Eigen::Vector3f::UnitY() * static_cast<float>(kProbeLiftM);
       const LightMoments m = probe_light_moments(*world.scene, world.lights, base, kProbeFacePx, kProbeSpp, kProbeSeed);
-      row["direction_deg"] = angle_between_deg(in_camera(camera, m.vector), in_camera(w.true_camera, w.true_light->vector));
+      const Eigen::Vector3d est_vector = in_camera(camera, m.vector), true_vector = in_camera(w.true_camera, w.true_light->vector);
+      row["direction_deg"] = angle_between_deg(est_vector, true_vector);
+      // Each side's light vector in its camera frame (x right, y down, z ahead), for the study of what went wrong.
+      row["light_vector"] = {{"estimate", {est_vector.x(), est_vector.y(), est_vector.z()}},
+                             {"truth", {true_vector.x(), true_vector.y(), true_vector.z()}}};
       seconds["light_probe"] = seconds_since(t);
     }
   }
@@ -565,7 +577,7 @@ CLI::App* add_bench_worlds_command(CLI::App& bench, WorldsBenchArgs& a) {
   cmd->add_option("--own-spp", a.options.own.spp, "Own world: samples per pixel of photos and insertions")->check(CLI::Range(1, 4096));
   cmd->add_option("--panoramas", a.options.panorama.panoramas, "Panorama world: names or EXR files (default: all 26)")->delimiter(',');
   cmd->add_option("--views", a.options.panorama.views_per_panorama, "Panorama world: views per panorama")->check(CLI::PositiveNumber);
-  cmd->add_option("--sweeps", a.sweeps, "Extra rows: comma-separated subset of spp,albedo,fit,lights,geometry,oracle (the true scene)");
+  cmd->add_option("--sweeps", a.sweeps, "Extra rows: comma-separated subset of spp,albedo,fit,lights,outdoor_sources,enclosure,geometry,oracle (the true scene)");
   cmd->add_option("--plot", a.options.plot_dir, "Write worlds.png (gnuplot) to this folder");
   cmd->add_flag("--json", a.json_out, "Machine-readable output");
   return cmd;
@@ -574,7 +586,7 @@ CLI::App* add_bench_worlds_command(CLI::App& bench, WorldsBenchArgs& a) {
 int run_bench_worlds_command(WorldsBenchArgs a) {
   a.options.worlds = parse_sweeps(a.worlds, {"own", "blender", "panorama"});
   if (a.options.worlds.empty()) throw std::invalid_argument("--worlds names no world");
-  a.options.sweeps = parse_sweeps(a.sweeps, {"spp", "albedo", "fit", "lights", "geometry", "oracle"});
+  a.options.sweeps = parse_sweeps(a.sweeps, {"spp", "albedo", "fit", "lights", "outdoor_sources", "enclosure", "geometry", "oracle"});
   parse_bench_size(a.own_size, 16, a.options.own.width, a.options.own.height);
   a.options.quiet = a.json_out;
   const json result = run_worlds_bench(a.options);

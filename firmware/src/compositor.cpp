@@ -89,6 +89,11 @@ CompositeWorld build_composite_world(const inference::SceneModel& scene, const r
     render::Mesh hidden = inference::hidden_facade_mesh(scene.hidden_facades, w.depth, w.camera);
     if (!hidden.empty()) world.add_mesh(hidden, render::Layer::Background);
   }
+  // Indoors the room closed around the photo, as the lighting's basis renders had it.
+  if (!scene.enclosure.empty()) {
+    render::Mesh enclosure = inference::room_enclosure_mesh(scene.enclosure, w.depth, w.camera);
+    if (!enclosure.empty()) world.add_mesh(enclosure, render::Layer::Background);
+  }
 
   // The prop is an instance: the background's BVH is built once, placement
   // looks at the background alone, and then the prop is moved into place.

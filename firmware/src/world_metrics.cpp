@@ -177,6 +177,7 @@ inference::SceneModel khan_baseline(const inference::SceneModel& estimate, const
   env.type = inference::LightSource::Type::Ibl;
   env.environment = inference::environment_from_photo(photo_linear, estimate.camera(), kKhanEnvironmentWidth);
   khan.lights = {env};
+  khan.enclosure = {};  // the baseline's room is open: the wrapped photo lights it from every side
   khan.gamma = 2.2;
   return khan;
 }

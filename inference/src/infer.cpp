@@ -244,10 +244,12 @@ SceneModel complete_scene(const cv::Mat& photo_linear, const GeometryEstimate& g
                                                 options.lighting, scene.indoor ? nullptr : &g.sky,
                                                 GeometryCues{g.orientation, g.sky.mask, g.normals});
   scene.hidden_facades = std::move(lighting.hidden_facades);
+  scene.enclosure = lighting.enclosure;
   scene.light_source_mask = lighting.source_mask;
   if (lighting.albedo_scale != 1.0) {
     scale_albedo(scene.albedo, lighting.albedo_scale);
     for (auto& f : scene.hidden_facades) f.albedo = (f.albedo * static_cast<float>(lighting.albedo_scale)).cwiseMin(1.f);
+    scene.enclosure.albedo = (scene.enclosure.albedo * static_cast<float>(lighting.albedo_scale)).cwiseMin(1.f);
   }
   scene.lights = std::move(lighting.lights);
   for (auto& r : lighting.reports) scene.reports.push_back(std::move(r));

@@ -111,6 +111,18 @@ LightSource facing_quad(const Vector3d& from, const Vector3d& dir, double distan
   return l;
 }
 
+// The layout's floor and ceiling heights (world y), where it has them.
+RoomHeights room_heights(const std::vector<SupportPlane>& planes) {
+  RoomHeights h;
+  for (const auto& p : planes) {
+    if (!(std::abs(p.normal.y()) > 0.5)) continue;
+    const double y = -p.offset / p.normal.y();
+    if (p.name == "floor") h.floor_y = y;
+    if (p.name == "ceiling") h.ceiling_y = y;
+  }
+  return h;
+}
+
 Vector3d unit_luminance_colour(const Vector3d& rgb) {
   const double lum = luminance(rgb);
   if (!(lum > 0)) return Vector3d::Ones();
@@ -274,7 +286,9 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
     const std::string path = options.light_classifier.empty() ? default_light_classifier_path() : options.light_classifier;
     // A missing or broken model is reported; the threshold then works alone.
     if (const auto model = load_once<LightClassifier>(path, why)) {
-      classifier_mask = model->source_mask(photo_linear, options.classifier, &sources);
+      LightClassifierOptions classifier = options.classifier;
+      if (!indoor && options.outdoor_source_threshold) classifier.threshold = *options.outdoor_source_threshold;
+      classifier_mask = model->source_mask(photo_linear, classifier, &sources);
       bright &= classifier_mask;
       detector = "classifier";
     } else {
@@ -415,6 +429,14 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
     facades = find_hidden_facades(depth, cues.normals, albedo, camera, options.facades);
     render::Mesh hidden = hidden_facade_mesh(facades, fit_depth, fit_camera, options.facades);
     if (!hidden.empty()) scene.add_mesh(hidden, render::Layer::Background);
+  }
+  if (indoor && options.enclose_room) {
+    std::vector<Vector3d> light_positions;
+    for (const LightSource& l : out.lights)
+      if (l.type != LightSource::Type::Ibl && !distant_light_direction(l, camera.center_world)) light_positions.push_back(l.position);
+    out.enclosure = enclose_room(depth, albedo, camera, room_heights(planes), light_positions, options.enclosure);
+    render::Mesh enclosure = room_enclosure_mesh(out.enclosure, fit_depth, fit_camera, options.enclosure);
+    if (!enclosure.empty()) scene.add_mesh(enclosure, render::Layer::Background);
   }
   scene.commit();
   // Area lights first, the environment last: the same order as out.lights,
@@ -674,7 +696,7 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
                  {"fit_error_encoded", chosen.data_error},
                  {"basis_render_seconds", basis_seconds}, {"fit_seconds", seconds_since(fit_start)},
                  {"sun_choice", sun_choice_report}, {"sun_from_shadows", sun_search_report},
-                 {"hidden_facades", facades.size()},
+                 {"hidden_facades", facades.size()}, {"enclosed", !out.enclosure.empty()},
                  {"visible_sources", visible_sources}, {"hypotheses", hypotheses}, {"kept", out.lights.size()}};
   out.reports.push_back(fit);
   out.gamma = response;

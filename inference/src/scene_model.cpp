@@ -160,6 +160,7 @@ void SceneModel::validate() const {
   }
   if (hidden_facades.size() > kMaxHiddenFacades) throw std::runtime_error("scene model: too many hidden facades");
   for (const auto& f : hidden_facades) f.validate();
+  enclosure.validate();
 }
 
 void save_scene(const SceneModel& scene, const std::string& folder) {
@@ -220,6 +221,9 @@ void save_scene(const SceneModel& scene, const std::string& folder) {
                        {"seen", {f.seen_min, f.seen_max}}, {"continued", {f.along_min, f.along_max}},
                        {"albedo", vec(f.albedo.cast<double>())}, {"pixels", f.pixels}});
   j["hidden_facades"] = facades;
+  if (!scene.enclosure.empty())
+    j["enclosure"] = {{"min", vec(scene.enclosure.min)}, {"max", vec(scene.enclosure.max)},
+                      {"albedo", vec(scene.enclosure.albedo.cast<double>())}};
   json reports = json::array();
   for (const auto& r : scene.reports) reports.push_back(to_json(r));
   j["reports"] = reports;
@@ -307,6 +311,13 @@ SceneModel load_scene(const std::string& folder) {
       f.albedo = vec3(fj.at("albedo"), "albedo").cast<float>();
       f.pixels = json_int(fj.at("pixels"), "pixels");
       s.hidden_facades.push_back(f);
+    }
+    if (j.contains("enclosure")) {
+      const json& ej = j.at("enclosure");
+      s.enclosure.min = vec3(ej.at("min"), "enclosure min");
+      s.enclosure.max = vec3(ej.at("max"), "enclosure max");
+      s.enclosure.albedo = vec3(ej.at("albedo"), "enclosure albedo").cast<float>();
+      if (s.enclosure.empty()) throw std::runtime_error("the enclosure's max corner is not above its min");
     }
     for (const json& rj : j.value("reports", json::array())) {
       StageReport r;

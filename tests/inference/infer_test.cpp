@@ -127,6 +127,9 @@ TEST(SceneModelFolder, RoundTripsEverything) {
   facade.albedo = {0.6f, 0.5f, 0.25f};
   facade.pixels = 321;
   s.hidden_facades = {facade};
+  s.enclosure.min = {-3.25, -0.1, -6.5};  // a room's (LightingOptions::enclose_room)
+  s.enclosure.max = {2.75, 2.9, 1.125};
+  s.enclosure.albedo = {0.6f, 0.5f, 0.4f};
   const std::string dir = ::testing::TempDir() + "/scene_roundtrip";
   std::filesystem::remove_all(dir);
   save_scene(s, dir);
@@ -157,6 +160,9 @@ TEST(SceneModelFolder, RoundTripsEverything) {
     EXPECT_DOUBLE_EQ(a, b);
   EXPECT_TRUE(f.albedo.isApprox(facade.albedo));
   EXPECT_EQ(f.pixels, 321);
+  EXPECT_EQ(t.enclosure.min, s.enclosure.min);
+  EXPECT_EQ(t.enclosure.max, s.enclosure.max);
+  EXPECT_EQ(t.enclosure.albedo, s.enclosure.albedo);
 }
 
 TEST(SceneModelFolder, MissingOrBrokenFolderIsAClearError) {

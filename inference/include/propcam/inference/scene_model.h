@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "propcam/inference/hidden_facades.h"
+#include "propcam/inference/room_enclosure.h"
 #include "propcam/render/camera.h"
 #include "propcam/render/lights.h"
 
@@ -93,6 +94,9 @@ struct SceneModel {
   // Outdoors: the seen facades continued out of the frame, occluders for the
   // lights (hidden_facades.h); the compositor adds them as the lighting did.
   std::vector<HiddenFacade> hidden_facades;
+  // Indoors: the room closed around what the photo shows (room_enclosure.h);
+  // the compositor adds it as the lighting did. Empty: open.
+  RoomEnclosure enclosure;
   std::vector<StageReport> reports;
   std::string source_photo;
 
