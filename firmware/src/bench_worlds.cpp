@@ -158,6 +158,9 @@ std::vector<Row> rows_for(const std::vector<std::string>& sweeps, const std::str
                        o.albedo.method = method;
                        o.albedo.outdoor_method.reset();
                      }});
+  if (wanted("grey_world"))
+    out.push_back({"grey_world", "albedo's mean made grey (the cast left to the lights)",
+                   [](inference::InferenceOptions& o) { o.albedo.grey_world = true; }});
   if (wanted("fit"))
     for (int spp : {2, 16})
       out.push_back({"fit", std::to_string(spp) + " spp basis renders", [spp](inference::InferenceOptions& o) {
@@ -577,7 +580,7 @@ CLI::App* add_bench_worlds_command(CLI::App& bench, WorldsBenchArgs& a) {
   cmd->add_option("--own-spp", a.options.own.spp, "Own world: samples per pixel of photos and insertions")->check(CLI::Range(1, 4096));
   cmd->add_option("--panoramas", a.options.panorama.panoramas, "Panorama world: names or EXR files (default: all 26)")->delimiter(',');
   cmd->add_option("--views", a.options.panorama.views_per_panorama, "Panorama world: views per panorama")->check(CLI::PositiveNumber);
-  cmd->add_option("--sweeps", a.sweeps, "Extra rows: comma-separated subset of spp,albedo,fit,lights,outdoor_sources,enclosure,geometry,oracle (the true scene)");
+  cmd->add_option("--sweeps", a.sweeps, "Extra rows: comma-separated subset of spp,albedo,grey_world,fit,lights,outdoor_sources,enclosure,geometry,oracle (the true scene)");
   cmd->add_option("--plot", a.options.plot_dir, "Write worlds.png (gnuplot) to this folder");
   cmd->add_flag("--json", a.json_out, "Machine-readable output");
   return cmd;
@@ -586,7 +589,7 @@ CLI::App* add_bench_worlds_command(CLI::App& bench, WorldsBenchArgs& a) {
 int run_bench_worlds_command(WorldsBenchArgs a) {
   a.options.worlds = parse_sweeps(a.worlds, {"own", "blender", "panorama"});
   if (a.options.worlds.empty()) throw std::invalid_argument("--worlds names no world");
-  a.options.sweeps = parse_sweeps(a.sweeps, {"spp", "albedo", "fit", "lights", "outdoor_sources", "enclosure", "geometry", "oracle"});
+  a.options.sweeps = parse_sweeps(a.sweeps, {"spp", "albedo", "grey_world", "fit", "lights", "outdoor_sources", "enclosure", "geometry", "oracle"});
   parse_bench_size(a.own_size, 16, a.options.own.width, a.options.own.height);
   a.options.quiet = a.json_out;
   const json result = run_worlds_bench(a.options);

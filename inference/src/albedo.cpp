@@ -20,8 +20,41 @@ constexpr double kMinChromaticityIntensity = 1e-3;
 
 }  // namespace
 
+namespace {
+
+// Grey world (AlbedoOptions::grey_world): each channel scaled so that the
+// mean colour is grey at the mean's luminance.
+void make_mean_grey(cv::Mat& albedo, StageReport& report) {
+  const cv::Scalar mean = cv::mean(albedo);
+  const Eigen::Vector3d m(mean[0], mean[1], mean[2]);
+  const double level = luminance(m);
+  Eigen::Vector3d gains = Eigen::Vector3d::Ones();
+  if (level > 0)
+    for (int c = 0; c < 3; ++c)
+      gains[c] = m[c] > 0 ? std::clamp(level / m[c], 1.0 / kMaxGreyWorldGain, kMaxGreyWorldGain) : kMaxGreyWorldGain;
+  albedo = albedo.mul(cv::Scalar(gains[0], gains[1], gains[2]));
+  cv::min(cv::max(albedo, 0.0), kMaxAlbedo, albedo);
+  report.details["grey_world_gains"] = {gains[0], gains[1], gains[2]};
+}
+
+cv::Mat albedo_with_its_cast(const cv::Mat& photo_linear, const AlbedoOptions& options, StageReport& report);
+
+}  // namespace
+
 cv::Mat estimate_albedo(const cv::Mat& photo_linear, const AlbedoOptions& options, StageReport& report) {
   const auto start = std::chrono::steady_clock::now();
+  cv::Mat albedo = albedo_with_its_cast(photo_linear, options, report);
+  if (options.grey_world) {
+    make_mean_grey(albedo, report);
+    report.why += ", mean made grey";
+  }
+  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return albedo;
+}
+
+namespace {
+
+cv::Mat albedo_with_its_cast(const cv::Mat& photo_linear, const AlbedoOptions& options, StageReport& report) {
   if (photo_linear.empty() || photo_linear.type() != CV_32FC3)
     throw std::invalid_argument("estimate_albedo: need a non-empty CV_32FC3 image");
   if (options.method == AlbedoOptions::Method::BlurredShading) {
@@ -38,7 +71,6 @@ cv::Mat estimate_albedo(const cv::Mat& photo_linear, const AlbedoOptions& option
     report.stage = "albedo";
     report.usable = true;
     report.why = "photo divided by blurred luminance (baseline)";
-    report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return albedo;
   }
   // Solve at a bounded resolution: shading is smooth, and the albedo's detail
@@ -104,9 +136,10 @@ cv::Mat estimate_albedo(const cv::Mat& photo_linear, const AlbedoOptions& option
   report.details = {{"solve_size", {w, h}}, {"reflectance_edges", reflectance_edges},
                     {"chromaticity_threshold", options.chromaticity_threshold},
                     {"log_intensity_threshold", options.log_intensity_threshold}};
-  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return albedo;
 }
+
+}  // namespace
 
 void scale_albedo(cv::Mat& albedo, double scale) {
   if (!std::isfinite(scale) || scale < 0) throw std::invalid_argument("scale_albedo: scale must be finite and >= 0");

@@ -60,9 +60,11 @@ TEST(Albedo, RetinexSeparatesPaintFromSmoothLight) {
 
 TEST(Albedo, HardCasesStayFiniteAndBounded) {
   StageReport report;
-  for (const auto method : {AlbedoOptions::Method::Retinex, AlbedoOptions::Method::BlurredShading}) {
+  for (const auto method : {AlbedoOptions::Method::Retinex, AlbedoOptions::Method::BlurredShading})
+  for (const bool grey_world : {false, true}) {
   AlbedoOptions options;
   options.method = method;
+  options.grey_world = grey_world;
   for (const cv::Mat& photo : {cv::Mat(cv::Size(16, 12), CV_32FC3, cv::Scalar(0, 0, 0)),
                                cv::Mat(cv::Size(16, 12), CV_32FC3, cv::Scalar(1, 1, 1)),
                                cv::Mat(cv::Size(1, 1), CV_32FC3, cv::Scalar(0.3, 0.2, 0.1)),
@@ -75,6 +77,41 @@ TEST(Albedo, HardCasesStayFiniteAndBounded) {
   EXPECT_TRUE(cv::checkRange(estimate_albedo(nan_photo, options, report)));
   EXPECT_THROW(estimate_albedo(cv::Mat(), options, report), std::invalid_argument);
   }
+}
+
+// A grey-and-white room under a 3000 K lamp's orange: with grey world the
+// albedo's mean is grey (the cast is left to the lights); without it, orange.
+// A photo with no blue at all gets the largest gain, and stays finite.
+TEST(Albedo, GreyWorldLeavesTheCastToTheLights) {
+  const cv::Vec3f lamp(1.0f, 0.6f, 0.3f);
+  cv::Mat photo(48, 64, CV_32FC3);
+  for (int y = 0; y < photo.rows; ++y)
+    for (int x = 0; x < photo.cols; ++x) {
+      const float paint = x < 32 ? 0.8f : 0.3f;
+      const float light = 0.4f + 0.3f * static_cast<float>(y) / photo.rows;
+      photo.at<cv::Vec3f>(y, x) = lamp * (paint * light);
+    }
+  for (const auto method : {AlbedoOptions::Method::Retinex, AlbedoOptions::Method::BlurredShading}) {
+    AlbedoOptions options;
+    options.method = method;
+    StageReport report;
+    const cv::Scalar cast = cv::mean(estimate_albedo(photo, options, report));
+    EXPECT_GT(cast[0], 2.0 * cast[2]);
+    options.grey_world = true;
+    const cv::Scalar grey = cv::mean(estimate_albedo(photo, options, report));
+    EXPECT_NEAR(grey[0], grey[1], 0.01 * grey[1]);
+    EXPECT_NEAR(grey[2], grey[1], 0.01 * grey[1]);
+    ASSERT_TRUE(report.details.contains("grey_world_gains"));
+    EXPECT_GT(report.details["grey_world_gains"][2].get<double>(), 1.0);
+  }
+  cv::Mat no_blue = photo.clone();
+  no_blue.forEach<cv::Vec3f>([](cv::Vec3f& p, const int*) { p[2] = 0.f; });
+  AlbedoOptions options;
+  options.grey_world = true;
+  StageReport report;
+  const cv::Mat a = estimate_albedo(no_blue, options, report);
+  EXPECT_TRUE(cv::checkRange(a, true, nullptr, 0.0, 0.951));
+  EXPECT_DOUBLE_EQ(report.details["grey_world_gains"][2].get<double>(), kMaxGreyWorldGain);
 }
 
 TEST(Albedo, LocalMseIsZeroForAScaledTruthAndOneForZero) {

@@ -31,8 +31,20 @@ struct AlbedoOptions {
   double chromaticity_threshold = 0.02;
   double log_intensity_threshold = 0.35;
   double mean_albedo = 0.5;  // reflectance assigned to the image's average (albedo is known up to scale)
+  // Grey world: the albedo's mean colour is made grey, so that the photo's
+  // colour cast (a 3000 K lamp's orange) is left for the lights to carry and
+  // reaches the prop. Off, the cast stays in the albedo and a white prop
+  // renders white in an orange room. Each channel's gain is bounded by
+  // kMaxGreyWorldGain. Off by default: it lowers the Blender world's
+  // composite error (tune mean 0.095 -> 0.092), whose renders keep the
+  // lamp's colour, but raises the panoramas' (diffuse si-RMSE 0.179 ->
+  // 0.205), real captures already white-balanced (`propcam bench worlds
+  // --sweeps grey_world`; docs/albedo.md).
+  bool grey_world = false;
   int max_solve_width = 1024;  // wider photos are solved at this width and upsampled
 };
+
+constexpr double kMaxGreyWorldGain = 4.0;
 
 // `photo_linear` CV_32FC3; returns CV_32FC3 albedo in [0, 0.95].
 cv::Mat estimate_albedo(const cv::Mat& photo_linear, const AlbedoOptions& options, StageReport& report);
