@@ -175,9 +175,11 @@ std::vector<Row> rows_for(const std::vector<std::string>& sweeps, const std::str
                    },
                    0, false, false});
   if (wanted("outdoor_sources"))
-    for (const auto& [name, share] : {std::pair{"0.7", 0.7}, {"0.9", 0.9}})
-      out.push_back({"outdoor_sources", std::string("outdoor sources at a vote share of ") + name,
+    for (const auto& entry : {std::pair{"0.7", 0.7}, {"0.9", 0.9}}) {
+      const double share = entry.second;  // a copy: lambdas may not capture structured bindings before clang 16
+      out.push_back({"outdoor_sources", std::string("outdoor sources at a vote share of ") + entry.first,
                      [share](inference::InferenceOptions& o) { o.lighting.outdoor_source_threshold = share; }});
+    }
   if (wanted("enclosure"))
     out.push_back({"enclosure", "room closed (enclosure)", [](inference::InferenceOptions& o) {
                      o.lighting.enclose_room = true;
