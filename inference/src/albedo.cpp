@@ -18,10 +18,6 @@ constexpr double kMaxAlbedo = 0.95;
 // Intensity below which chromaticity is noise and is not compared.
 constexpr double kMinChromaticityIntensity = 1e-3;
 
-}  // namespace
-
-namespace {
-
 // Grey world (AlbedoOptions::grey_world): each channel scaled so that the
 // mean colour is grey at the mean's luminance.
 void make_mean_grey(cv::Mat& albedo, StageReport& report) {
@@ -36,23 +32,6 @@ void make_mean_grey(cv::Mat& albedo, StageReport& report) {
   cv::min(cv::max(albedo, 0.0), kMaxAlbedo, albedo);
   report.details["grey_world_gains"] = {gains[0], gains[1], gains[2]};
 }
-
-cv::Mat albedo_with_its_cast(const cv::Mat& photo_linear, const AlbedoOptions& options, StageReport& report);
-
-}  // namespace
-
-cv::Mat estimate_albedo(const cv::Mat& photo_linear, const AlbedoOptions& options, StageReport& report) {
-  const auto start = std::chrono::steady_clock::now();
-  cv::Mat albedo = albedo_with_its_cast(photo_linear, options, report);
-  if (options.grey_world) {
-    make_mean_grey(albedo, report);
-    report.why += ", mean made grey";
-  }
-  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  return albedo;
-}
-
-namespace {
 
 cv::Mat albedo_with_its_cast(const cv::Mat& photo_linear, const AlbedoOptions& options, StageReport& report) {
   if (photo_linear.empty() || photo_linear.type() != CV_32FC3)
@@ -140,6 +119,17 @@ cv::Mat albedo_with_its_cast(const cv::Mat& photo_linear, const AlbedoOptions& o
 }
 
 }  // namespace
+
+cv::Mat estimate_albedo(const cv::Mat& photo_linear, const AlbedoOptions& options, StageReport& report) {
+  const auto start = std::chrono::steady_clock::now();
+  cv::Mat albedo = albedo_with_its_cast(photo_linear, options, report);
+  if (options.grey_world) {
+    make_mean_grey(albedo, report);
+    report.why += ", mean made grey";
+  }
+  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return albedo;
+}
 
 void scale_albedo(cv::Mat& albedo, double scale) {
   if (!std::isfinite(scale) || scale < 0) throw std::invalid_argument("scale_albedo: scale must be finite and >= 0");

@@ -6,24 +6,14 @@
 #include <stdexcept>
 #include <string>
 
-#include "propcam/render/depth_mesh.h"
+#include "depth_samples.h"
 #include "propcam/render/mesh_shapes.h"
 
 namespace propcam::inference {
-namespace {
 
+using depth_samples::is_surface;
+using depth_samples::percentile;
 using Eigen::Vector3d;
-
-// The value at fraction q of a sorted copy of v (v not empty).
-double quantile(std::vector<double> v, double q) {
-  const size_t at = std::min(v.size() - 1, static_cast<size_t>(std::floor(std::clamp(q, 0.0, 1.0) * (v.size() - 1))));
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(at), v.end());
-  return v[at];
-}
-
-bool is_surface(float d) { return std::isfinite(d) && d > 0.f && d < render::kSkyDepthM; }
-
-}  // namespace
 
 void RoomEnclosure::validate() const {
   if (empty()) return;
@@ -49,8 +39,7 @@ RoomEnclosure enclose_room(const cv::Mat& depth, const cv::Mat& albedo, const re
     for (int x = step / 2; x < depth.cols; x += step) {
       const float d = depth.at<float>(y, x);
       if (!is_surface(d)) continue;
-      const Vector3d ray((x - camera.cx) / camera.fx, (y - camera.cy) / camera.fy, 1.0);  // pixel centres at integers
-      const Vector3d p = camera.center_world + camera.R_world_from_cam * (ray * static_cast<double>(d));
+      const Vector3d p = depth_samples::world_point(camera, x, y, d);
       if (!p.allFinite()) continue;
       xs.push_back(p.x()), ys.push_back(p.y()), zs.push_back(p.z());
       const cv::Vec3f a = albedo.at<cv::Vec3f>(y, x);
@@ -62,8 +51,8 @@ RoomEnclosure enclose_room(const cv::Mat& depth, const cv::Mat& albedo, const re
   RoomEnclosure box;
   if (xs.empty()) return box;
   const double lo = o.percentile, hi = 1.0 - o.percentile;
-  box.min = Vector3d(quantile(xs, lo), quantile(ys, lo), quantile(zs, lo));
-  box.max = Vector3d(quantile(xs, hi), quantile(ys, hi), quantile(zs, hi));
+  box.min = Vector3d(percentile(xs, lo), percentile(ys, lo), percentile(zs, lo));
+  box.max = Vector3d(percentile(xs, hi), percentile(ys, hi), percentile(zs, hi));
   // The camera stands inside, with room behind it and to its sides.
   const Vector3d c = camera.center_world;
   box.min = box.min.cwiseMin(Vector3d(c.x() - o.behind_camera_m, c.y(), c.z() - o.behind_camera_m));

@@ -53,11 +53,12 @@ TEST(RoomEnclosureHardCases, BrokenPixelsAreSkipped) {
   EXPECT_NEAR(box.albedo.x(), 0.5f, 1e-6f);
 }
 
-// Depths just short of the sky and a light a kilometre away: the box stops
-// at kMaxEnclosureExtentM and its mesh at kMaxEnclosureCellsPerSide^2 cells a face.
+// Depths just short of what counts as sky (half its depth) and a light a
+// kilometre away: the box stops at kMaxEnclosureExtentM and its mesh at
+// kMaxEnclosureCellsPerSide^2 cells a face.
 TEST(RoomEnclosureHardCases, FarDepthsAndLightsAreBounded) {
   const render::PinholeCamera c = level_camera();
-  const cv::Mat depth(c.height, c.width, CV_32F, cv::Scalar(0.99f * render::kSkyDepthM));
+  const cv::Mat depth(c.height, c.width, CV_32F, cv::Scalar(0.49f * render::kSkyDepthM));
   const RoomEnclosure box = enclose_room(depth, grey_albedo(c), c, {}, {{1000.0, 5.0, 0.0}});
   ASSERT_FALSE(box.empty());
   EXPECT_NO_THROW(box.validate());
