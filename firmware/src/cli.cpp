@@ -154,11 +154,21 @@ int cmd_infer(const InferArgs& a) {
   return 0;
 }
 
+// `--bounces` counts as Blender Cycles' max_bounces does (0: direct light
+// only); the renderer's max_bounces is one more (path_tracer.h).
+constexpr int kDefaultCliBounces = 3;
+constexpr int kMaxCliBounces = 63;
+int renderer_bounces(int cli_bounces) {
+  if (cli_bounces < 0 || cli_bounces > kMaxCliBounces)
+    throw std::invalid_argument("--bounces must be in 0.." + std::to_string(kMaxCliBounces));
+  return cli_bounces + 1;
+}
+
 struct CompositeArgs {
   std::string photo, scene_dir, prop, at, out, material, albedo, save_scene;
   double height = 0, yaw = 0, camera_height = 1.5;
   LensPrior lens;
-  int spp = 16, bounces = 4;
+  int spp = 16, bounces = kDefaultCliBounces;
   uint64_t seed = 0x5eed;
   bool json_out = false, explain = false, no_cull = false;
   double aperture = 0, focus = 0;
@@ -238,7 +248,7 @@ int cmd_composite(const CompositeArgs& a) {
   if (!parse_pair(a.at, placement.pixel_u, placement.pixel_v, ','))
     throw std::invalid_argument("--at expects U,V in pixels, got '" + a.at + "'");
   if (a.spp <= 0 || a.spp > 65536) throw std::invalid_argument("--spp must be in 1..65536");
-  if (a.bounces < 0 || a.bounces > 64) throw std::invalid_argument("--bounces must be in 0..64");
+  const int max_bounces = renderer_bounces(a.bounces);
   MaterialOverride material;
   if (!a.material.empty()) material.type = a.material;
   if (!a.albedo.empty()) material.albedo = parse_rgb(a.albedo);
@@ -258,7 +268,7 @@ int cmd_composite(const CompositeArgs& a) {
   }
   render::RenderSettings settings;
   settings.samples_per_pixel = a.spp;
-  settings.max_bounces = a.bounces;
+  settings.max_bounces = max_bounces;
   settings.seed = a.seed;
   settings.progress = progress.fraction_printer("render");
   progress.stage("render: " + std::to_string(a.spp) + " spp, " + std::to_string(a.bounces) + " bounces");
@@ -450,20 +460,22 @@ int cmd_view(const ViewArgs& a) {
 
 struct RenderArgs {
   std::string scene, out;
-  int spp = 16, bounces = 4;
+  int spp = 16, bounces = kDefaultCliBounces, threads = 0;
   double time_budget = 0;  // seconds; 0: render `spp` samples in one pass
+  double clamp = render::kDefaultMaxSampleLuminance;  // 0: off
   uint64_t seed = 0x5eed;
   bool json_out = false;
 };
 
-// `--time`: passes of 1, 2, 4, ... samples per pixel; at most this many passes
-// (2^16 - 1 samples per pixel in all).
+// `--time`: passes of 1, 1, 2, 4, ... samples per pixel; at most this many
+// passes (2^15 samples per pixel in all).
 constexpr int kMaxTimedPasses = 16;
 
 int cmd_render(const RenderArgs& a) {
   Progress progress(a.json_out);
   if (a.spp <= 0 || a.spp > 65536) throw std::invalid_argument("--spp must be in 1..65536");
-  if (a.bounces < 0 || a.bounces > 64) throw std::invalid_argument("--bounces must be in 0..64");
+  if (a.threads < 0) throw std::invalid_argument("--threads must be >= 0 (0: all)");
+  if (!(a.clamp >= 0) || !std::isfinite(a.clamp)) throw std::invalid_argument("--clamp must be a finite number >= 0 (0: off)");
   std::string ext = fs::path(a.out).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
   if (ext != ".exr" && ext != ".png" && ext != ".jpg" && ext != ".jpeg")
@@ -474,7 +486,10 @@ int cmd_render(const RenderArgs& a) {
   const render::PinholeCamera& camera = file.camera;
 
   render::RenderSettings settings;
-  settings.max_bounces = a.bounces;
+  settings.max_bounces = renderer_bounces(a.bounces);
+  settings.threads = a.threads;
+  settings.max_sample_luminance = static_cast<float>(a.clamp);
+  settings.seed = a.seed;
   cv::Mat sum(camera.height, camera.width, CV_32FC3, cv::Scalar::all(0));
   int total_spp = 0, passes = 0;
   uint64_t rays = 0;
@@ -482,10 +497,10 @@ int cmd_render(const RenderArgs& a) {
   const auto seconds_since_start = [&] {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   };
-  // One pass of `spp` samples, accumulated with its weight.
-  const auto pass = [&](int spp, uint64_t seed, const std::string& what) {
+  // One pass of the pixels' next `spp` samples, accumulated with its weight.
+  const auto pass = [&](int spp, const std::string& what) {
     settings.samples_per_pixel = spp;
-    settings.seed = seed;
+    settings.first_sample = total_spp;
     settings.progress = progress.fraction_printer(what);
     render::RenderStats stats;
     const cv::Mat image = render::render_image(*scene, camera, file.lights, settings, &stats);
@@ -496,18 +511,19 @@ int cmd_render(const RenderArgs& a) {
     return stats.seconds;
   };
   if (a.time_budget > 0) {
-    // Doubling passes with independent seeds; stop before a pass that would
-    // (taking twice the last one) end after the budget. The first always runs.
+    // Passes of 1, 1, 2, 4, ... samples continuing each pixel's sequence, so
+    // the total after each pass is a power of two (where the sequence is best
+    // stratified); stop before a pass that would (taking about twice the
+    // last one) end after the budget. The first always runs.
     for (int k = 0; k < kMaxTimedPasses; ++k) {
-      const int spp = 1 << k;
+      const int spp = std::max(1, total_spp);
       progress.stage("render pass " + std::to_string(k + 1) + ": " + std::to_string(spp) + " spp");
-      const double last = pass(spp, a.seed + static_cast<uint64_t>(k) * 0x9E3779B97F4A7C15ULL,
-                               "pass " + std::to_string(k + 1));
+      const double last = pass(spp, "pass " + std::to_string(k + 1));
       if (seconds_since_start() + 2.0 * last > a.time_budget) break;
     }
   } else {
     progress.stage("render: " + std::to_string(a.spp) + " spp, " + std::to_string(a.bounces) + " bounces");
-    pass(a.spp, a.seed, "render");
+    pass(a.spp, "render");
   }
   const double seconds = seconds_since_start();
   const cv::Mat image = sum / static_cast<double>(total_spp);
@@ -557,7 +573,7 @@ int run_cli(int argc, char** argv) {
   composite->add_option("--height", comp.height, "Prop height in metres (default: its natural size)");
   composite->add_option("--yaw", comp.yaw, "Turn about the up axis, degrees counter-clockwise from above");
   composite->add_option("--spp", comp.spp, "Samples per pixel");
-  composite->add_option("--bounces", comp.bounces, "Maximum bounces after the camera hit");
+  composite->add_option("--bounces", comp.bounces, "Light bounces as Blender Cycles counts them (0: direct light only)");
   composite->add_option("--seed", comp.seed, "Random seed (same seed, same image)");
   composite->add_option("--material", comp.material,
                         "Override the prop's material: diffuse|plastic|glossy|metal|dielectric|glass")
@@ -646,7 +662,10 @@ int run_cli(int argc, char** argv) {
   render_cmd->add_option("--time", render_args.time_budget, "Render passes of doubling spp for about S seconds")
       ->check(CLI::PositiveNumber)
       ->excludes(spp_option);
-  render_cmd->add_option("--bounces", render_args.bounces, "Maximum bounces after the camera hit");
+  render_cmd->add_option("--bounces", render_args.bounces, "Light bounces as Blender Cycles counts them (0: direct light only)");
+  render_cmd->add_option("--threads", render_args.threads, "Render threads (0: all hardware threads)");
+  render_cmd->add_option("--clamp", render_args.clamp,
+                         "Largest luminance of one sample; brighter samples are scaled down (0: no clamp)");
   render_cmd->add_option("--seed", render_args.seed, "Random seed (same seed, same image)");
   render_cmd->add_option("-o,--output", render_args.out, "Image to write (EXR linear, or PNG/JPEG sRGB)")->required();
   render_cmd->add_flag("--json", render_args.json_out, "Machine-readable summary on stdout");

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "bsdf.h"
+#include "sampler.h"
 #include "sampling.h"
 
 namespace propcam::render {
@@ -18,7 +19,7 @@ namespace {
 using detail::Bsdf;
 using detail::BsdfSample;
 using detail::Frame;
-using detail::Rng;
+using detail::SobolSampler;
 
 constexpr float kInfinity = std::numeric_limits<float>::infinity();
 // Ray origins are pushed off surfaces by this fraction of their distance from
@@ -29,9 +30,11 @@ constexpr float kRayOffsetAbsolute = 1e-4f;
 constexpr float kShadowShortening = 1e-3f;
 constexpr int kRussianRouletteStartBounce = 2;
 constexpr float kMaxSurvivalProbability = 0.95f;
-// Sample contributions are clamped to this luminance so a rare caustic path
-// cannot produce a white fleck (bias traded for variance, as in production renderers).
-constexpr float kMaxSampleLuminance = 64.f;
+// Sampler dimensions: the camera ray's pixel position, then per bounce one 2D
+// draw per light (next-event estimation), the BSDF's lobe (1D) and direction
+// (2D), and Russian roulette (1D).
+constexpr int kCameraDimensions = 1;
+constexpr int kBsdfAndRouletteDimensions = 3;
 // Light a prop adds to the photo's surfaces (bounce, reflected highlights,
 // caustics) is clamped per sample to this luminance, about the photo's white:
 // at interactive sample counts, a rare path from a floor pixel via a mirror
@@ -61,14 +64,14 @@ struct PathResult {
 
 class PathIntegrator {
  public:
-  PathIntegrator(const Scene& scene, const LightRig& lights, int max_bounces, bool layers = false,
-                 bool caustics = true, bool prop_interreflection = true)
+  PathIntegrator(const Scene& scene, const LightRig& lights, const RenderSettings& settings, bool layers)
       : scene_(scene),
         lights_(lights),
-        max_bounces_(max_bounces),
+        max_bounces_(settings.max_bounces),
+        max_sample_luminance_(settings.max_sample_luminance > 0.f ? settings.max_sample_luminance : kInfinity),
         layers_(layers),
-        caustics_(caustics),
-        prop_interreflection_(prop_interreflection) {}
+        caustics_(settings.caustics),
+        prop_interreflection_(settings.prop_interreflection) {}
 
   // Rig order of the first sphere light, sun and the environment, and the
   // slot for emissive surfaces.
@@ -77,7 +80,7 @@ class PathIntegrator {
   int environment_index() const { return sun_base() + static_cast<int>(lights_.suns.size()); }
   int emissive_slot() const { return lights_.count(); }
 
-  PathResult trace(Eigen::Vector3f origin, Eigen::Vector3f direction, Rng& rng, bool with_props) const {
+  PathResult trace(Eigen::Vector3f origin, Eigen::Vector3f direction, SobolSampler& sampler, bool with_props) const {
     PathResult result;
     if (layers_) result.per_light.assign(lights_.count() + 1, Eigen::Vector3f::Zero());
     // Every contribution enters here, with the light it came from.
@@ -92,7 +95,9 @@ class PathIntegrator {
     // throughput without the n^2 radiance scaling that cancels on exit.
     float eta_scale = 1.f;
     float previous_bsdf_pdf = 0.f;
+    const int dimensions_per_bounce = lights_.count() + kBsdfAndRouletteDimensions;
     for (int bounce = 0; bounce <= max_bounces_; ++bounce) {
+      sampler.set_dimension(kCameraDimensions + bounce * dimensions_per_bounce);
       RayHit hit;
       ++result.rays;
       const bool found = scene_.intersect(origin, direction, kInfinity, with_props, hit);
@@ -125,11 +130,12 @@ class PathIntegrator {
       const Frame frame(sp.shading_normal);
       const Eigen::Vector3f wo = frame.to_local(-direction);
       const Bsdf bsdf(*sp.material, sp.albedo, sp.front_face);
-      direct_light(sp, frame, wo, bsdf, rng, with_props, result, add);
+      direct_light(sp, frame, wo, bsdf, sampler, with_props, result, add);
 
       BsdfSample bs;
-      const float u0 = rng.uniform(), u1 = rng.uniform(), u2 = rng.uniform();
-      if (!bsdf.sample(wo, u0, u1, u2, bs)) break;
+      const float u0 = sampler.get1d();
+      const Eigen::Vector2f u = sampler.get2d();
+      if (!bsdf.sample(wo, u0, u.x(), u.y(), bs)) break;
       const Eigen::Vector3f wi = frame.to_world(bs.wi);
       const float cos_geometric = wi.dot(sp.geometric_normal);
       // The shading normal sent it to the other side of the actual surface.
@@ -139,7 +145,7 @@ class PathIntegrator {
       previous_bsdf_pdf = bs.pdf;
       if (bounce + 1 >= kRussianRouletteStartBounce) {
         const float survive = std::min(kMaxSurvivalProbability, throughput.maxCoeff() * eta_scale);
-        if (rng.uniform() >= survive) break;
+        if (sampler.get1d() >= survive) break;
         throughput /= survive;
       }
       if (!throughput.allFinite()) break;
@@ -149,7 +155,7 @@ class PathIntegrator {
     const float lum = 0.2126f * result.radiance.x() + 0.7152f * result.radiance.y() + 0.0722f * result.radiance.z();
     float scale = 1.f;
     if (!result.radiance.allFinite()) scale = 0.f;
-    else if (lum > kMaxSampleLuminance) scale = kMaxSampleLuminance / lum;
+    else if (lum > max_sample_luminance_) scale = max_sample_luminance_ / lum;
     if (scale != 1.f) {
       result.radiance *= scale;
       for (auto& l : result.per_light) l = scale == 0.f || !l.allFinite() ? Eigen::Vector3f::Zero() : Eigen::Vector3f(l * scale);
@@ -214,7 +220,8 @@ class PathIntegrator {
   // against the BSDF's density for the same direction. Dielectrics also
   // receive light through the surface (wi.z < 0).
   template <typename Add>
-  void direct_light(const SurfacePoint& sp, const Frame& frame, const Eigen::Vector3f& wo, const Bsdf& bsdf, Rng& rng,
+  void direct_light(const SurfacePoint& sp, const Frame& frame, const Eigen::Vector3f& wo, const Bsdf& bsdf,
+                    SobolSampler& sampler,
                     bool with_props, PathResult& result, const Add& add) const {
     const auto connect = [&](const LightSample& ls) -> Eigen::Vector3f {
       if (!(ls.pdf > 0.f) || !std::isfinite(ls.pdf)) return Eigen::Vector3f::Zero();
@@ -235,27 +242,27 @@ class PathIntegrator {
     // with-prop and without-prop paths stay aligned.
     int index = 0;
     for (const AreaLight& light : lights_.area_lights) {
-      const float u1 = rng.uniform(), u2 = rng.uniform();
-      add(index++, connect(light.sample(sp.position, u1, u2)));
+      const Eigen::Vector2f u = sampler.get2d();
+      add(index++, connect(light.sample(sp.position, u.x(), u.y())));
     }
     for (const SphereLight& light : lights_.sphere_lights) {
-      const float u1 = rng.uniform(), u2 = rng.uniform();
+      const Eigen::Vector2f u = sampler.get2d();
       if (light.prop_only && !with_props) {
         ++index;
         continue;
       }
-      const Eigen::Vector3f arriving = connect(light.sample(sp.position, u1, u2));
+      const Eigen::Vector3f arriving = connect(light.sample(sp.position, u.x(), u.y()));
       if (light.prop_only && arriving.maxCoeff() > 0.f) result.touched_prop = true;
       add(index++, arriving);
     }
     for (const SunLight& sun : lights_.suns) {
-      const float u1 = rng.uniform(), u2 = rng.uniform();
-      add(index++, connect(sun.sample(u1, u2)));
+      const Eigen::Vector2f u = sampler.get2d();
+      add(index++, connect(sun.sample(u.x(), u.y())));
     }
     if (lights_.environment) {
-      const float u1 = rng.uniform(), u2 = rng.uniform();
+      const Eigen::Vector2f u = sampler.get2d();
       LightSample ls;
-      ls.direction = lights_.environment->sample(u1, u2, ls.pdf);
+      ls.direction = lights_.environment->sample(u.x(), u.y(), ls.pdf);
       ls.distance = kInfinity;
       ls.radiance = lights_.environment->radiance(ls.direction);
       add(index, connect(ls));
@@ -265,6 +272,7 @@ class PathIntegrator {
   const Scene& scene_;
   const LightRig& lights_;
   int max_bounces_;
+  float max_sample_luminance_;
   bool layers_;
   bool caustics_;
   bool prop_interreflection_;
@@ -304,19 +312,29 @@ void check_inputs(const Scene& scene, const PinholeCamera& camera, const RenderS
     throw std::invalid_argument("render: invalid camera intrinsics");
   if (settings.samples_per_pixel <= 0) throw std::invalid_argument("render: samples_per_pixel must be positive");
   if (settings.max_bounces < 0) throw std::invalid_argument("render: max_bounces must be >= 0");
+  if (settings.first_sample < 0) throw std::invalid_argument("render: first_sample must be >= 0");
+  if (std::isnan(settings.max_sample_luminance)) throw std::invalid_argument("render: max_sample_luminance is NaN");
 }
 
 struct CameraRay {
   Eigen::Vector3f origin, direction;
 };
 
-CameraRay jittered_camera_ray(const PinholeCamera& camera, int x, int y, Rng& rng) {
-  const double u = x + rng.uniform() - 0.5, v = y + rng.uniform() - 0.5;
+CameraRay jittered_camera_ray(const PinholeCamera& camera, int x, int y, SobolSampler& sampler) {
+  const Eigen::Vector2f jitter = sampler.get2d();
+  const double u = x + jitter.x() - 0.5, v = y + jitter.y() - 0.5;
   return {camera.center_world.cast<float>(), camera.ray_direction(u, v).cast<float>()};
 }
 
-uint64_t pixel_stream(const PinholeCamera& camera, int x, int y) {
+uint64_t pixel_key(const PinholeCamera& camera, int x, int y) {
   return static_cast<uint64_t>(y) * static_cast<uint64_t>(camera.width) + static_cast<uint64_t>(x);
+}
+
+// Sample settings.first_sample + s of a pixel of a plain render; the
+// differential render draws from its own seed (differential_sample).
+SobolSampler image_sampler(const RenderSettings& settings, const PinholeCamera& camera, int x, int y, int s) {
+  return SobolSampler(detail::mix_seed(settings.seed, 0), pixel_key(camera, x, y),
+                      static_cast<uint32_t>(settings.first_sample) + static_cast<uint32_t>(s));
 }
 
 }  // namespace
@@ -328,17 +346,17 @@ cv::Mat render_world(const Scene& scene, const PinholeCamera& camera, const Ligh
   check_inputs(scene, camera, settings);
   const auto start = std::chrono::steady_clock::now();
   cv::Mat image(camera.height, camera.width, CV_32FC3, cv::Scalar::all(0));
-  const PathIntegrator integrator(scene, lights, settings.max_bounces);
+  const PathIntegrator integrator(scene, lights, settings, /*layers=*/false);
   std::atomic<uint64_t> rays{0};
   for_each_tile(camera.width, camera.height, settings, [&](int x0, int y0, int x1, int y1) {
     uint64_t tile_rays = 0;
     for (int y = y0; y < y1; ++y)
       for (int x = x0; x < x1; ++x) {
-        Rng rng(detail::mix_seed(settings.seed, 0), pixel_stream(camera, x, y));
         Eigen::Vector3f sum = Eigen::Vector3f::Zero();
         for (int s = 0; s < settings.samples_per_pixel; ++s) {
-          const CameraRay ray = jittered_camera_ray(camera, x, y, rng);
-          const PathResult path = integrator.trace(ray.origin, ray.direction, rng, with_props);
+          SobolSampler sampler = image_sampler(settings, camera, x, y, s);
+          const CameraRay ray = jittered_camera_ray(camera, x, y, sampler);
+          const PathResult path = integrator.trace(ray.origin, ray.direction, sampler, with_props);
           sum += path.radiance;
           tile_rays += path.rays;
         }
@@ -365,18 +383,18 @@ std::vector<cv::Mat> render_background_light_images(const Scene& scene, const Pi
   const int k = lights.count();
   std::vector<cv::Mat> images;
   for (int i = 0; i < k; ++i) images.emplace_back(camera.height, camera.width, CV_32FC3, cv::Scalar::all(0));
-  const PathIntegrator integrator(scene, lights, settings.max_bounces, /*layers=*/true);
+  const PathIntegrator integrator(scene, lights, settings, /*layers=*/true);
   std::atomic<uint64_t> rays{0};
   for_each_tile(camera.width, camera.height, settings, [&](int x0, int y0, int x1, int y1) {
     uint64_t tile_rays = 0;
     std::vector<Eigen::Vector3f> sum(k);
     for (int y = y0; y < y1; ++y)
       for (int x = x0; x < x1; ++x) {
-        Rng rng(detail::mix_seed(settings.seed, 0), pixel_stream(camera, x, y));
         std::fill(sum.begin(), sum.end(), Eigen::Vector3f::Zero());
         for (int s = 0; s < settings.samples_per_pixel; ++s) {
-          const CameraRay ray = jittered_camera_ray(camera, x, y, rng);
-          const PathResult path = integrator.trace(ray.origin, ray.direction, rng, false);
+          SobolSampler sampler = image_sampler(settings, camera, x, y, s);
+          const CameraRay ray = jittered_camera_ray(camera, x, y, sampler);
+          const PathResult path = integrator.trace(ray.origin, ray.direction, sampler, false);
           for (int i = 0; i < k; ++i) sum[i] += path.per_light[i];
           tile_rays += path.rays;
         }
@@ -432,12 +450,12 @@ namespace {
 // The per-sample change of one differential sample (see render_differential).
 void differential_sample(const PathIntegrator& integrator, const PinholeCamera& camera, uint64_t seed, int x, int y,
                          int sample, DifferentialPixel& pixel) {
-  Rng rng(detail::mix_seed(seed, static_cast<uint64_t>(sample) + 1), pixel_stream(camera, x, y));
-  const CameraRay ray = jittered_camera_ray(camera, x, y, rng);
+  SobolSampler sampler(detail::mix_seed(seed, 1), pixel_key(camera, x, y), static_cast<uint32_t>(sample));
+  const CameraRay ray = jittered_camera_ray(camera, x, y, sampler);
   // Both worlds consume the same random numbers: where the prop does not
   // interfere, the two paths are identical and their difference is exactly 0.
-  Rng rng_without = rng;
-  const PathResult with_prop = integrator.trace(ray.origin, ray.direction, rng, true);
+  SobolSampler sampler_without = sampler;
+  const PathResult with_prop = integrator.trace(ray.origin, ray.direction, sampler, true);
   pixel.rays += with_prop.rays;
   ++pixel.samples;
   Eigen::Vector3f delta = Eigen::Vector3f::Zero();
@@ -449,7 +467,7 @@ void differential_sample(const PathIntegrator& integrator, const PinholeCamera& 
     delta = with_prop.radiance;
     for (size_t i = 0; layers && i < with_prop.per_light.size(); ++i) pixel.change_sum_per_light[i] += with_prop.per_light[i];
   } else if (with_prop.touched_prop) {
-    const PathResult without = integrator.trace(ray.origin, ray.direction, rng_without, false);
+    const PathResult without = integrator.trace(ray.origin, ray.direction, sampler_without, false);
     pixel.rays += without.rays;
     ++pixel.second_paths;
     delta = with_prop.radiance - without.radiance;
@@ -472,8 +490,7 @@ void differential_sample(const PathIntegrator& integrator, const PinholeCamera& 
 void accumulate_differential_pixel(const Scene& scene, const PinholeCamera& camera, const LightRig& lights,
                                    const RenderSettings& settings, int x, int y, int first_sample, int count,
                                    DifferentialPixel& pixel) {
-  const PathIntegrator integrator(scene, lights, settings.max_bounces, settings.light_layers, settings.caustics,
-                                  settings.prop_interreflection);
+  const PathIntegrator integrator(scene, lights, settings, settings.light_layers);
   for (int s = first_sample; s < first_sample + count; ++s)
     differential_sample(integrator, camera, settings.seed, x, y, s, pixel);
 }
@@ -485,8 +502,7 @@ DifferentialRender render_differential(const Scene& scene, const PinholeCamera& 
   DifferentialRender out;
   out.coverage = cv::Mat(camera.height, camera.width, CV_32F, cv::Scalar(0));
   out.change = cv::Mat(camera.height, camera.width, CV_32FC3, cv::Scalar::all(0));
-  const PathIntegrator integrator(scene, lights, settings.max_bounces, settings.light_layers, settings.caustics,
-                                  settings.prop_interreflection);
+  const PathIntegrator integrator(scene, lights, settings, settings.light_layers);
   std::atomic<uint64_t> rays{0}, second_paths{0}, untouched{0};
   for_each_tile(camera.width, camera.height, settings, [&](int x0, int y0, int x1, int y1) {
     uint64_t tile_rays = 0, tile_second = 0, tile_untouched = 0;

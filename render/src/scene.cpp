@@ -34,12 +34,34 @@ Eigen::Vector3f sample_texture(const cv::Mat& texture, const Eigen::Vector2f& uv
          ay * ((1 - ax) * texel(x0, y0 + 1) + ax * texel(x0 + 1, y0 + 1));
 }
 
+// The viewer must see the shading side of a surface: where an interpolated
+// normal leans away from the incoming ray (the silhouettes of smooth-shaded
+// meshes), it is turned toward the ray until the cosine is this much. Unlike
+// pbrt, which lets the lobe flip to the far side (so such pixels go dark),
+// this keeps the BSDF's wo above its normal, as Cycles' ensure_valid_reflection does.
+constexpr float kMinViewCosine = 0.02f;
+// Below this length the interpolated normal has no direction; the geometric one is used.
+constexpr float kMinNormalLength = 1e-6f;
+
+// `shading` turned toward `wo` (both unit, on the side of `geometric`) until
+// their cosine is at least kMinViewCosine: the smallest rotation that does it.
+Eigen::Vector3f facing_shading_normal(const Eigen::Vector3f& shading, const Eigen::Vector3f& geometric,
+                                      const Eigen::Vector3f& wo) {
+  const float cosine = shading.dot(wo);
+  if (cosine >= kMinViewCosine) return shading;
+  const Eigen::Vector3f across = shading - cosine * wo;  // the part of the normal perpendicular to wo
+  const float across_length = across.norm();
+  if (!(across_length > kMinNormalLength)) return geometric;
+  const Eigen::Vector3f turned =
+      kMinViewCosine * wo + std::sqrt(1.f - kMinViewCosine * kMinViewCosine) * (across / across_length);
+  return turned.dot(geometric) > 0.f && turned.allFinite() ? turned.normalized() : geometric;
+}
+
 }  // namespace
 
 // Instance ids in the world with props: the background is instance 0, prop
 // k is instance k + 1.
 constexpr unsigned kBackgroundInstance = 0;
-
 struct Scene::EmbreeState {
   RTCDevice device = nullptr;
   RTCScene background = nullptr;  // background meshes only, attached by mesh index
@@ -255,10 +277,10 @@ SurfacePoint Scene::surface(const RayHit& hit, const Eigen::Vector3f& origin,
         w * mesh.normals[tri[0]] + hit.u * mesh.normals[tri[1]] + hit.v * mesh.normals[tri[2]];
     if (instanced) interpolated = entry.normal_matrix * interpolated;
     const float len = interpolated.norm();
-    if (len > 1e-6f) {
+    if (len > kMinNormalLength) {
       interpolated /= len;
       if (interpolated.dot(ng) < 0.f) interpolated = -interpolated;
-      ns = interpolated;
+      ns = facing_shading_normal(interpolated, ng, -direction);
     }
   }
   sp.shading_normal = ns;

@@ -320,6 +320,55 @@ TEST(PathTracer, FurnaceMatchesTheBsdfAlbedoForEveryOpaqueMaterial) {
   }
 }
 
+// A smooth-shaded sphere under a uniform sky of radiance L reflects albedo * L
+// everywhere (it is convex: nothing else occludes it); a pixel it covers in
+// part also sees the sky. Near the silhouette the interpolated normal of a
+// triangle facing the camera can face away from it; such pixels must not go
+// dark (the shading normal is turned toward the viewer).
+TEST(PathTracer, SmoothShadedSphereHasNoDarkSilhouette) {
+  constexpr float kAlbedo = 0.5f, kSky = 1.f;
+  constexpr double kMaxDeficit = 0.05;  // no pixel more than 5% below the analytic value
+  constexpr int kCoverageGrid = 8;      // sub-pixel rays per side for the coverage
+  Mesh sphere = sphere_mesh({0.f, 0.f, 0.f}, 0.5f, material(Material::Type::Diffuse, 1.f, Eigen::Vector3f::Constant(kAlbedo)),
+                            16, 32);
+  sphere.compute_vertex_normals();
+  Scene scene;
+  scene.add_mesh(sphere, Layer::Background);
+  scene.commit();
+  LightRig lights;
+  lights.environment = uniform_sky(kSky);
+  RenderSettings settings;
+  settings.samples_per_pixel = 256;
+  settings.max_bounces = 1;
+  PinholeCamera cam;
+  cam.width = cam.height = 40;
+  cam.fx = cam.fy = 70;  // the sphere fills most of the frame
+  cam.cx = cam.cy = (cam.width - 1) / 2.0;
+  cam.R_world_from_cam << 1, 0, 0, 0, -1, 0, 0, 0, -1;  // looking along -Z
+  cam.center_world = {0, 0, 2.f};
+  const cv::Mat image = render_image(scene, cam, lights, settings);
+  double worst_ratio = 1e9;
+  int covered_pixels = 0;
+  for (int y = 0; y < image.rows; ++y)
+    for (int x = 0; x < image.cols; ++x) {
+      int hits = 0;
+      for (int j = 0; j < kCoverageGrid; ++j)
+        for (int i = 0; i < kCoverageGrid; ++i) {
+          const Eigen::Vector3f dir =
+              cam.ray_direction(x - 0.5 + (i + 0.5) / kCoverageGrid, y - 0.5 + (j + 0.5) / kCoverageGrid).cast<float>();
+          RayHit hit;
+          hits += scene.intersect(cam.center_world.cast<float>(), dir, std::numeric_limits<float>::infinity(), true, hit);
+        }
+      if (hits == 0) continue;
+      ++covered_pixels;
+      const double coverage = static_cast<double>(hits) / (kCoverageGrid * kCoverageGrid);
+      const double expected = coverage * kAlbedo * kSky + (1.0 - coverage) * kSky;
+      worst_ratio = std::min(worst_ratio, image.at<cv::Vec3f>(y, x)[1] / expected);
+    }
+  ASSERT_GT(covered_pixels, 400);
+  EXPECT_GE(worst_ratio, 1.0 - kMaxDeficit);
+}
+
 // Smooth glass is lossless: a glass sphere in a white furnace disappears
 // (entering, leaving and total internal reflection all conserve radiance).
 TEST(PathTracer, GlassSphereVanishesInAWhiteFurnace) {

@@ -16,10 +16,24 @@
 
 namespace propcam::render {
 
+// A sample's luminance above which its radiance is scaled down, so a rare
+// caustic path cannot leave a white fleck (bias traded for variance, as
+// production renderers do).
+constexpr float kDefaultMaxSampleLuminance = 64.f;
+
 struct RenderSettings {
   int samples_per_pixel = 16;
-  int max_bounces = 4;      // scattering events after the camera hit (the paper allows 16)
+  // Path vertices after the camera hit that may scatter: 1 is direct light
+  // only, so Blender Cycles' max_bounces B is max_bounces B + 1 (the CLI's
+  // --bounces counts as Cycles does). The paper allows 16.
+  int max_bounces = 4;
   uint64_t seed = 0x5eed;   // the same seed gives the same image
+  // render_image and render_background_*: the pixels' samples are numbers
+  // [first_sample, first_sample + samples_per_pixel) of one low-discrepancy
+  // sequence per pixel, so passes that continue it sum to the single render.
+  int first_sample = 0;
+  // Per-sample luminance clamp; 0 (or less) turns it off.
+  float max_sample_luminance = kDefaultMaxSampleLuminance;
   int threads = 0;          // 0: all hardware threads
   int tile_size = 32;
   // Keep the prop's change split by light (rig order, then emissive surfaces)
@@ -63,7 +77,7 @@ cv::Mat render_background_image(const Scene& scene, const PinholeCamera& camera,
 // (next-event estimation toward each at every vertex), so k lights cost far
 // less than k renders. Each light's estimate is the one a render of it alone
 // makes, up to noise, except that the luminance clamp of a sample
-// (kMaxSampleLuminance) applies to the lights' sum. Emissive surfaces outside
+// (max_sample_luminance) applies to the lights' sum. Emissive surfaces outside
 // the rig are dropped.
 std::vector<cv::Mat> render_background_light_images(const Scene& scene, const PinholeCamera& camera,
                                                     const LightRig& lights, const RenderSettings& settings,
