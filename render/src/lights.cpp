@@ -4,7 +4,10 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <optional>
 #include <stdexcept>
+
+#include "spherical_rectangle.h"
 
 namespace propcam::render {
 namespace {
@@ -153,10 +156,23 @@ bool AreaLight::emits() const {
          emits_radiance(radiance);
 }
 
+namespace {
+
+std::optional<detail::SphericalRectangle> seen_as_rectangle(const AreaLight& light, const Vector3f& from) {
+  return detail::SphericalRectangle::seen_from(from.cast<double>(), light.corner.cast<double>(),
+                                               light.edge_u.cast<double>(), light.edge_v.cast<double>());
+}
+
+}  // namespace
+
 LightSample AreaLight::sample(const Vector3f& from, float u1, float u2) const {
   LightSample out;
   if (!emits()) return out;
-  const Vector3d point = corner.cast<double>() + u1 * edge_u.cast<double>() + u2 * edge_v.cast<double>();
+  // A rectangle is sampled by solid angle where the parametrisation holds,
+  // a parallelogram (or a rectangle seen from too far or too flat) by area.
+  const auto rectangle = seen_as_rectangle(*this, from);
+  const Vector3d point = rectangle ? rectangle->sample(u1, u2)
+                                   : Vector3d(corner.cast<double>() + u1 * edge_u.cast<double>() + u2 * edge_v.cast<double>());
   Vector3d to = point - from.cast<double>();
   const double dist2 = to.squaredNorm();
   if (!(dist2 > kMinLightDistance * kMinLightDistance)) return out;
@@ -169,7 +185,7 @@ LightSample AreaLight::sample(const Vector3f& from, float u1, float u2) const {
   out.direction = to.cast<float>();
   out.distance = static_cast<float>(dist);
   out.radiance = radiance;
-  out.pdf = static_cast<float>(dist2 / (cos_light * area));
+  out.pdf = static_cast<float>(rectangle ? 1.0 / rectangle->solid_angle() : dist2 / (cos_light * area));
   return out;
 }
 
@@ -191,7 +207,8 @@ bool AreaLight::intersect(const Vector3f& origin, const Vector3f& direction, flo
   const double r = (uu * q.dot(ev) - uv * q.dot(eu)) / det;
   if (s < 0.0 || s > 1.0 || r < 0.0 || r > 1.0) return false;
   t = static_cast<float>(distance);
-  pdf = static_cast<float>(distance * distance / (cos_light * area));
+  const auto rectangle = seen_as_rectangle(*this, origin);
+  pdf = static_cast<float>(rectangle ? 1.0 / rectangle->solid_angle() : distance * distance / (cos_light * area));
   return std::isfinite(pdf);
 }
 

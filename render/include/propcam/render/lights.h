@@ -46,7 +46,9 @@ constexpr double kMinSunAngularRadius = 1e-4;
 constexpr double kMaxSunAngularRadius = 0.5;
 
 // Parallelogram corner + s*edge_u + t*edge_v, s,t in [0,1]; emits radiance on
-// the side of edge_u x edge_v. Sampled uniformly by area.
+// the side of edge_u x edge_v. A rectangle is sampled uniformly by the solid
+// angle it subtends (Urena et al. 2013); a parallelogram with skewed edges, or
+// a rectangle too small or seen too edge-on for that, uniformly by area.
 struct AreaLight {
   Eigen::Vector3f corner = Eigen::Vector3f::Zero();
   Eigen::Vector3f edge_u = Eigen::Vector3f::UnitX();
