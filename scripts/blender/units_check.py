@@ -14,7 +14,6 @@ differs by more than 2% (or a block mean by more than 5%)."""
 import json
 import math
 import os
-import shutil
 import subprocess
 import sys
 
@@ -25,6 +24,8 @@ import bpy  # noqa: E402
 import numpy as np  # noqa: E402
 
 import bcommon  # noqa: E402
+import propcam_cli  # noqa: E402
+import twin  # noqa: E402
 import units  # noqa: E402
 
 ENV_FILE = "/usr/share/blender/datafiles/studiolights/world/courtyard.exr"
@@ -40,46 +41,24 @@ def args():
     return a
 
 
-def write_obj(path, verts, faces):
-    with open(path, "w") as f:
-        for v in verts:
-            f.write("v %.6f %.6f %.6f\n" % tuple(v))
-        for fc in faces:
-            f.write("f " + " ".join(str(i + 1) for i in fc) + "\n")
+def block_rel_diffs(lum_ref, lum, n=4):
+    """n x n block means of lum against lum_ref's, row by row: relative to the
+    block's reference mean, or to the image's where the block is darker (black sky)."""
+    hh, ww = lum_ref.shape
+    out = []
+    for by in range(n):
+        for bx in range(n):
+            sl = (slice(by * hh // n, (by + 1) * hh // n), slice(bx * ww // n, (bx + 1) * ww // n))
+            out.append(float((lum[sl].mean() - lum_ref[sl].mean()) / max(lum_ref[sl].mean(), lum_ref.mean())))
+    return out
 
 
-class Case:
-    """Geometry kept twice: Blender objects and OBJ files for SCENE.json."""
+class Case(twin.TwinScene):
+    """One case: its geometry kept twice (twin.py) and compared by run()."""
 
     def __init__(self, name, a):
+        super().__init__(os.path.join(a["out"], name), a["w"], a["h"], int(a["threads"]))
         self.name, self.a = name, a
-        self.dir = os.path.join(a["out"], name)
-        os.makedirs(self.dir, exist_ok=True)
-        bcommon.reset_scene(a["w"], a["h"], int(a["threads"]))
-        self.meshes, self.lights, self.n = [], [], 0
-
-    def box(self, lo, hi, albedo, inward=False):
-        x0, y0, z0 = lo
-        x1, y1, z1 = hi
-        v = [(x0, y0, z0), (x1, y0, z0), (x1, y1, z0), (x0, y1, z0), (x0, y0, z1), (x1, y0, z1), (x1, y1, z1),
-             (x0, y1, z1)]
-        f = [(0, 3, 2, 1), (4, 5, 6, 7), (0, 1, 5, 4), (3, 7, 6, 2), (0, 4, 7, 3), (1, 2, 6, 5)]
-        if inward:
-            f = [tuple(reversed(q)) for q in f]
-        tris = [t for q in f for t in ((q[0], q[1], q[2]), (q[0], q[2], q[3]))]
-        self.n += 1
-        fn = "mesh_%d.obj" % self.n
-        write_obj(os.path.join(self.dir, fn), v, tris)
-        self.meshes.append({"file": fn, "material": {"type": "diffuse", "albedo": albedo}})
-        bcommon.mesh_object("m%d" % self.n, v, f, bcommon.diffuse_material("d%d" % self.n, [albedo] * 3))
-
-    def camera(self, center, yaw, pitch, fov_deg):
-        w, h = self.a["w"], self.a["h"]
-        f = (w / 2) / math.tan(math.radians(fov_deg) / 2)
-        self.R = units.camera_rotation(yaw, pitch, 0.0)
-        self.K = {"fx": f, "fy": f, "cx": (w - 1) / 2, "cy": (h - 1) / 2}
-        self.center = center
-        bcommon.set_camera(self.R, center, f, w, h)
 
     def run(self, blender_desc):
         a = self.a
@@ -88,33 +67,21 @@ class Case:
         cy.max_bounces = cy.diffuse_bounces = cy.glossy_bounces = cy.transmission_bounces = B
         out, secs = bcommon.render_layers(int(a["spp"]), 1, (), max_bounces=B)
         cyc = out["combined"]
-        scene = {"camera": {"K": self.K, "R_world_from_cam": np.asarray(self.R).tolist(), "center": list(self.center),
-                            "width": a["w"], "height": a["h"]},
-                 "meshes": self.meshes, "lights": self.lights}
-        with open(os.path.join(self.dir, "scene.json"), "w") as f:
-            json.dump(scene, f, indent=1)
+        scene_path = self.write_scene_json()
         ours_path = os.path.join(self.dir, "propcam.exr")
         # Cycles max_bounces B (B = 0: direct light only) is our --bounces B + 1
-        cmd = [a["propcam"], "render", os.path.join(self.dir, "scene.json"), "--spp", a["spp"], "--bounces",
-               str(B + 1), "-o", ours_path]
+        # until the CLI counts as Cycles does (propcam_cli.bounces_arg)
+        cmd = [a["propcam"], "render", scene_path, "--spp", a["spp"], "--bounces",
+               str(propcam_cli.bounces_arg(a["propcam"], B)), "-o", ours_path]
         subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
-        img = bpy.data.images.load(ours_path)
-        px = np.empty(img.size[0] * img.size[1] * 4, np.float32)
-        img.pixels.foreach_get(px)
-        ours = px.reshape(img.size[1], img.size[0], 4)[::-1, :, :3]
+        ours = twin.load_image_linear(ours_path)
         bcommon.save_display_image(cyc, os.path.join(self.dir, "cycles.png"), "Standard")
         bcommon.save_display_image(ours, os.path.join(self.dir, "propcam.png"), "Standard")
         lc, lo = units.luminance(cyc), units.luminance(ours)
         mean_c, mean_o = cyc.reshape(-1, 3).mean(0), ours.reshape(-1, 3).mean(0)
         rel = float(lo.mean() / lc.mean() - 1)
         rel_rgb = (mean_o / np.maximum(mean_c, 1e-12) - 1).tolist()
-        hh, ww = lc.shape
-        blocks = []
-        for by in range(4):
-            for bx in range(4):
-                sl = (slice(by * hh // 4, (by + 1) * hh // 4), slice(bx * ww // 4, (bx + 1) * ww // 4))
-                # relative to the block's mean, or to the image's where the block is darker (black sky)
-                blocks.append(float((lo[sl].mean() - lc[sl].mean()) / max(lc[sl].mean(), lc.mean())))
+        blocks = block_rel_diffs(lc, lo)
         worst = max(blocks, key=abs)
         return {"case": self.name, "blender": blender_desc, "ours": self.lights, "cycles_mean": float(lc.mean()),
                 "propcam_mean": float(lo.mean()), "mean_rel_diff": rel, "rgb_rel_diff": rel_rgb,
@@ -204,17 +171,15 @@ def main():
 
     c = Case("environment", a)
     ground(c)
-    shutil.copy(ENV_FILE, os.path.join(c.dir, "env.exr"))
     s = 0.8
-    bcommon.set_world_environment(os.path.join(c.dir, "env.exr"), s)
-    c.lights = [{"type": "ibl", "file": "env.exr", "intensity": s}]
+    c.environment(ENV_FILE, s)
     results.append(c.run("world: %s x %.1f, Mapping Z %.0f deg" % (os.path.basename(ENV_FILE), s,
                                                                     units.ENV_MAPPING_Z_DEG)))
 
     with open(os.path.join(a["out"], "units_check.json"), "w") as f:
         json.dump({"size": [a["w"], a["h"]], "spp": int(a["spp"]), "cycles_max_bounces": int(a["bounces"]),
-                   "propcam_bounces": int(a["bounces"]) + 1, "mean_tolerance": MEAN_TOL,
-                   "block_tolerance": BLOCK_TOL, "results": results}, f, indent=1)
+                   "propcam_bounces": propcam_cli.bounces_arg(a["propcam"], int(a["bounces"])),
+                   "mean_tolerance": MEAN_TOL, "block_tolerance": BLOCK_TOL, "results": results}, f, indent=1)
     print("UNITS  %-12s %10s %10s %8s %8s %8s %8s %10s  %s" % ("case", "cycles", "propcam", "diff", "R", "G", "B",
                                                               "worstblk", "ok"))
     for r in results:
