@@ -89,8 +89,7 @@ def small_bulb(t):
 
 
 def glossy_env(t):
-    """Glossy props on a diffuse ground under courtyard.exr (max luminance 53,
-    below propcam's per-sample clamp of 64)."""
+    """Glossy props on a diffuse ground under courtyard.exr (max luminance 53)."""
     t.box((-20.0, -0.5, -20.0), (20.0, 0.0, 20.0), 0.5)
     t.uv_sphere((-0.75, 0.4, -0.6), 0.4, {"type": "plastic", "albedo": [0.7, 0.12, 0.08], "roughness": 0.02,
                                           "specular": 0.04})
@@ -401,12 +400,9 @@ def main():
         log("note: Cycles spp %s dropped (not below --ref-spp %d)" % (dropped, a["ref_spp"]))
     if not a["cycles_spp"]:
         raise SystemExit("cycles_bench: no Cycles spp below --ref-spp")
-    bounces_ours = propcam_cli.bounces_arg(a["propcam"], a["bounces"])
-    log("Blender %s, %dx%d, Cycles max_bounces %d = propcam --bounces %d (%s), threads: Cycles %d, propcam %s; "
-        "propcam's sample clamp: %s" % (
-            bpy.app.version_string, a["w"], a["h"], a["bounces"], bounces_ours,
-            "counted as Cycles does" if propcam_cli.bounces_like_cycles(a["propcam"]) else "old meaning, B + 1",
-            a["threads"], propcam_cli.threads_note(a["propcam"], a["threads"]), propcam_cli.clamp_note(a["propcam"])))
+    log("Blender %s, %dx%d, max_bounces %d in both (propcam --bounces %d), threads %d in both; "
+        "propcam's sample clamp: off (--clamp 0)" % (
+            bpy.app.version_string, a["w"], a["h"], a["bounces"], a["bounces"], a["threads"]))
     start_render_clock()
     cycles_settings, results = {}, []
     for name in a["scenes"]:
@@ -417,11 +413,8 @@ def main():
     doc = {"size": [a["w"], a["h"]], "threads": a["threads"], "ref_spp": a["ref_spp"],
            "cycles": {"version": bpy.app.version_string, "settings": cycles_settings, "pixel_filter": "BOX 1 px",
                       "seeds": {"timed": CYCLES_SEED, "reference_halves": list(REF_SEEDS)}},
-           "propcam": {"binary": a["propcam"], "bounces": bounces_ours, "cycles_max_bounces": a["bounces"],
-                       "bounces_like_cycles": propcam_cli.bounces_like_cycles(a["propcam"]),
-                       "threads": propcam_cli.threads_note(a["propcam"], a["threads"]), "seed": PROPCAM_SEED,
-                       "sample_clamp": propcam_cli.clamp_note(a["propcam"]),
-                       "max_spp": a["max_spp"]},
+           "propcam": {"binary": a["propcam"], "bounces": a["bounces"], "threads": a["threads"],
+                       "seed": PROPCAM_SEED, "sample_clamp": "off", "max_spp": a["max_spp"]},
            "mean_tolerance": MEAN_TOL, "plot": os.path.basename(plot), "scenes": results}
     with open(os.path.join(a["out"], "cycles_bench.json"), "w") as f:
         json.dump(doc, f, indent=1)

@@ -7,8 +7,9 @@ uses). Run by scripts/blender_units_check.sh:
 
 Cases: area_light (Blender AREA light), area_mesh (emissive quad), point_light
 (Blender POINT light with soft radius), point_mesh (emissive UV sphere), sun
-(Blender SUN), environment (equirectangular EXR world). Prints a table of
-image means and the worst of 4x4 block means (a block's difference relative
+(Blender SUN), environment (equirectangular EXR world). --bounces B is
+Cycles' max_bounces and propcam's --bounces alike (0: direct light only).
+Prints a table of image means and the worst of 4x4 block means (a block's difference relative
 to its Cycles mean, or to the image mean where the block is darker); exits 1 when an image mean
 differs by more than 2% (or a block mean by more than 5%)."""
 import json
@@ -24,7 +25,6 @@ import bpy  # noqa: E402
 import numpy as np  # noqa: E402
 
 import bcommon  # noqa: E402
-import propcam_cli  # noqa: E402
 import twin  # noqa: E402
 import units  # noqa: E402
 
@@ -69,10 +69,8 @@ class Case(twin.TwinScene):
         cyc = out["combined"]
         scene_path = self.write_scene_json()
         ours_path = os.path.join(self.dir, "propcam.exr")
-        # Cycles max_bounces B (B = 0: direct light only) is our --bounces B + 1
-        # until the CLI counts as Cycles does (propcam_cli.bounces_arg)
-        cmd = [a["propcam"], "render", scene_path, "--spp", a["spp"], "--bounces",
-               str(propcam_cli.bounces_arg(a["propcam"], B)), "-o", ours_path]
+        # --bounces counts as Cycles' max_bounces (B = 0: direct light only)
+        cmd = [a["propcam"], "render", scene_path, "--spp", a["spp"], "--bounces", str(B), "-o", ours_path]
         subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
         ours = twin.load_image_linear(ours_path)
         bcommon.save_display_image(cyc, os.path.join(self.dir, "cycles.png"), "Standard")
@@ -177,8 +175,7 @@ def main():
                                                                     units.ENV_MAPPING_Z_DEG)))
 
     with open(os.path.join(a["out"], "units_check.json"), "w") as f:
-        json.dump({"size": [a["w"], a["h"]], "spp": int(a["spp"]), "cycles_max_bounces": int(a["bounces"]),
-                   "propcam_bounces": propcam_cli.bounces_arg(a["propcam"], int(a["bounces"])),
+        json.dump({"size": [a["w"], a["h"]], "spp": int(a["spp"]), "bounces": int(a["bounces"]),
                    "mean_tolerance": MEAN_TOL, "block_tolerance": BLOCK_TOL, "results": results}, f, indent=1)
     print("UNITS  %-12s %10s %10s %8s %8s %8s %8s %10s  %s" % ("case", "cycles", "propcam", "diff", "R", "G", "B",
                                                               "worstblk", "ok"))
