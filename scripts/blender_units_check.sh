@@ -1,14 +1,17 @@
 #!/usr/bin/env bash
 # Units check of the Blender world's light conversions (docs/blender_world.md):
-# for each light type (area light and emissive quad, point light and emissive
-# sphere, sun, environment map) one small diffuse scene rendered by Blender
+# for each light type (area light, a turned one and emissive quad, point light
+# with and without radius and emissive sphere, spot light with and without
+# radius, disc, an area light in view shown and hidden to the camera, sun,
+# environment map) one small diffuse scene rendered by Blender
 # Cycles and by `propcam render` (its SCENE.json written with the conversion
 # functions of scripts/blender/units.py); prints a table and exits non-zero if
 # an image mean differs by more than 2% (or a 4x4 block mean by more than 5%).
 #
 #   scripts/blender_units_check.sh [--out DIR] [--size WxH] [--spp N] [--bounces B] [--threads T]
 #
-# Needs `blender` on PATH and a release build (build/release/firmware/propcam).
+# Needs `blender` on PATH and a release build (build/release/firmware/propcam,
+# or the binary in $PROPCAM).
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 root="$(cd "$here/.." && pwd)"
@@ -21,7 +24,7 @@ while [[ $# -gt 0 ]]; do
     --spp) spp="$2"; shift 2 ;;
     --bounces) bounces="$2"; shift 2 ;;
     --threads) threads="$2"; shift 2 ;;
-    -h|--help) sed -n '2,11p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,14p' "$0"; exit 0 ;;
     *) echo "blender_units_check: unknown argument $1" >&2; exit 2 ;;
   esac
 done

@@ -75,6 +75,15 @@ LightAtPoint light_at(const render::LightRig& rig, const Vector3f& p) {
       const render::LightSample s = b.sample(p, u(rng), u(rng));
       add(s.direction, s.radiance, s.pdf, w);
     }
+  for (const auto& d : rig.disc_lights)
+    for (int i = 0; i < kLightVectorSamples; ++i) {
+      const render::LightSample s = d.sample(p, u(rng), u(rng));
+      add(s.direction, s.radiance, s.pdf, w);
+    }
+  for (const auto& point : rig.point_lights) {
+    const render::LightSample s = point.sample(p);  // a delta: one sample is exact
+    add(s.direction, s.radiance, s.pdf, 1.0);
+  }
   for (const auto& sun : rig.suns) {
     if (!sun.emits()) continue;
     const Vector3f d = sun.direction.normalized();

@@ -112,6 +112,11 @@ LightMoments probe_light_moments(const render::Scene& scene, const render::Light
   for (const auto& l : lights.sphere_lights)
     if (!l.prop_only) brightest = std::max(brightest, luminance(l.radiance));
   for (const auto& s : lights.suns) brightest = std::max(brightest, luminance(s.irradiance));
+  for (const auto& l : lights.disc_lights) brightest = std::max(brightest, luminance(l.radiance));
+  // A point is never seen: like a sun, what counts is the irradiance it
+  // gives (here at the probe point, as an estimate for surfaces near it).
+  for (const auto& l : lights.point_lights)
+    brightest = std::max(brightest, luminance(l.sample(point).radiance));
   if (lights.environment && lights.environment->valid()) {
     double max_texel = 0;
     const cv::Mat& image = lights.environment->image();
@@ -126,6 +131,8 @@ LightMoments probe_light_moments(const render::Scene& scene, const render::Light
   for (auto& l : rig.area_lights) l.radiance *= inv;
   for (auto& l : rig.sphere_lights) l.radiance *= inv;
   for (auto& s : rig.suns) s.irradiance *= inv;
+  for (auto& l : rig.disc_lights) l.radiance *= inv;
+  for (auto& l : rig.point_lights) l.intensity *= inv;
   if (lights.environment) {
     auto env = std::make_shared<render::EnvironmentLight>(*lights.environment);
     env->set_scale(lights.environment->scale() * inv);
@@ -160,12 +167,17 @@ LightMoments probe_light_moments(const render::Scene& scene, const render::Light
     env_settings.seed = seed * 7919u + static_cast<uint64_t>(face);
     add_face(m, render::render_background_image(scene, cam, env_rig, env_settings), cam, scale, 1.0);
   }
-  // Area and sphere lights seen directly: light sampling with shadow rays.
+  // Area, sphere, disc and point lights seen directly: light sampling with
+  // shadow rays (a point's samples all agree: their mean is exact).
   std::mt19937_64 rng(seed);
   for (const auto& l : lights.area_lights)
     if (l.emits()) add_direct(m, scene, l, point, rng);
   for (const auto& l : lights.sphere_lights)
     if (l.emits() && !l.prop_only) add_direct(m, scene, l, point, rng);
+  for (const auto& l : lights.disc_lights)
+    if (l.emits()) add_direct(m, scene, l, point, rng);
+  for (const auto& l : lights.point_lights)
+    if (l.emits()) add_direct(m, scene, l, point, rng);
   // Suns: their discs, where the way to them is free.
   for (const auto& sun : lights.suns) {
     if (!sun.emits()) continue;

@@ -22,11 +22,23 @@ constexpr double kMinLightCosine = 1e-7;
 // A point closer to a light than this (m) receives nothing from that sample
 // (the inverse-square factor would overflow).
 constexpr double kMinLightDistance = 1e-6;
+// A spot's half-angle is at most a right angle (Blender's spot_size at most
+// 180 degrees): beyond it Cycles' cos(theta) factor would turn negative.
+constexpr double kMaxSpotHalfAngle = kPiD / 2.0;
 
 using Eigen::Vector3d;
 using Eigen::Vector3f;
 
 bool emits_radiance(const Vector3f& radiance) { return radiance.allFinite() && radiance.maxCoeff() > 0.f; }
+
+// Two unit vectors completing the unit `axis` to an orthonormal basis (Duff et al. 2017).
+void orthonormal_basis(const Vector3d& axis, Vector3d& t, Vector3d& bt) {
+  const double sign = std::copysign(1.0, axis.z());
+  const double a = -1.0 / (sign + axis.z());
+  const double b = axis.x() * axis.y() * a;
+  t = Vector3d(1.0 + sign * axis.x() * axis.x() * a, sign * b, -sign * axis.x());
+  bt = Vector3d(b, sign + axis.y() * axis.y() * a, -axis.y());
+}
 
 // Unit vector within `one_minus_cos_max` of the unit axis, uniform over the
 // cone's solid angle (cos theta = 1 - u1 * (1 - cos_max), done in 1 - cos so
@@ -36,13 +48,27 @@ Vector3d sample_cone(const Vector3d& axis, double one_minus_cos_max, double u1, 
   const double cos_theta = 1.0 - one_minus_cos;
   const double sin_theta = std::sqrt(std::max(0.0, one_minus_cos * (2.0 - one_minus_cos)));
   const double phi = 2.0 * kPiD * u2;
-  // Orthonormal basis around the axis (Duff et al. 2017).
-  const double sign = std::copysign(1.0, axis.z());
-  const double a = -1.0 / (sign + axis.z());
-  const double b = axis.x() * axis.y() * a;
-  const Vector3d t(1.0 + sign * axis.x() * axis.x() * a, sign * b, -sign * axis.x());
-  const Vector3d bt(b, sign + axis.y() * axis.y() * a, -axis.y());
+  Vector3d t, bt;
+  orthonormal_basis(axis, t, bt);
   return (sin_theta * std::cos(phi) * t + sin_theta * std::sin(phi) * bt + cos_theta * axis).normalized();
+}
+
+// The unit square onto the unit disc, preserving area and keeping
+// neighbouring samples neighbours (Shirley and Chiu's concentric map), so
+// stratified numbers stay stratified on a disc light.
+Eigen::Vector2d concentric_disc(double u1, double u2) {
+  const double a = 2.0 * u1 - 1.0, b = 2.0 * u2 - 1.0;
+  if (a == 0.0 && b == 0.0) return Eigen::Vector2d::Zero();
+  const bool wide = std::abs(a) > std::abs(b);
+  const double r = wide ? a : b;
+  const double phi = wide ? 0.25 * kPiD * (b / a) : 0.5 * kPiD - 0.25 * kPiD * (a / b);
+  return {r * std::cos(phi), r * std::sin(phi)};
+}
+
+// Cycles' smoothstep: 3x^2 - 2x^3 on [0, 1].
+double smoothstep(double x) {
+  x = std::clamp(x, 0.0, 1.0);
+  return x * x * (3.0 - 2.0 * x);
 }
 
 // 1 - cos of the half-angle of a sphere of radius^2 r2 seen from distance^2 d2 > r2.
@@ -212,8 +238,38 @@ bool AreaLight::intersect(const Vector3f& origin, const Vector3f& direction, flo
   return std::isfinite(pdf);
 }
 
+bool SpotCone::valid() const {
+  return direction.allFinite() && direction.norm() > 0.f && std::isfinite(half_angle) && std::isfinite(blend);
+}
+
+double SpotCone::attenuation_at_cos(double cos_theta) const {
+  if (!valid() || !std::isfinite(cos_theta)) return 0.0;
+  const double cos_half = std::cos(std::clamp(half_angle, 0.0, kMaxSpotHalfAngle));
+  const double c = std::min(cos_theta, 1.0);
+  if (!(c > cos_half)) return 0.0;  // outside the cone (a zero cone holds nothing)
+  // The blend is a band of cosines just inside the edge, as Cycles measures it.
+  const double band = (1.0 - cos_half) * std::clamp(blend, 0.0, 1.0);
+  const double t = c - cos_half;
+  return t < band ? c * smoothstep(t / band) : c;
+}
+
+double SpotCone::attenuation(const Vector3d& w) const {
+  if (!valid() || !w.allFinite()) return 0.0;
+  const Vector3d axis = direction.cast<double>();
+  const double norms = axis.norm() * w.norm();
+  if (!(norms > 0.0)) return 0.0;
+  return attenuation_at_cos(axis.dot(w) / norms);
+}
+
 bool SphereLight::emits() const {
-  return center.allFinite() && std::isfinite(radius) && radius > kMinSphereLightRadius && emits_radiance(radiance);
+  return center.allFinite() && std::isfinite(radius) && radius > kMinSphereLightRadius && emits_radiance(radiance) &&
+         (!spot || spot->valid());
+}
+
+Vector3f SphereLight::radiance_toward(const Vector3f& point) const {
+  if (!spot) return radiance;
+  const double a = spot->attenuation(point.cast<double>() - center.cast<double>());
+  return (radiance.cast<double>() * a).cast<float>();
 }
 
 LightSample SphereLight::sample(const Vector3f& from, float u1, float u2) const {
@@ -222,6 +278,8 @@ LightSample SphereLight::sample(const Vector3f& from, float u1, float u2) const 
   const Vector3d oc = center.cast<double>() - from.cast<double>();
   const double d2 = oc.squaredNorm(), r2 = static_cast<double>(radius) * radius;
   if (!(d2 > r2)) return out;  // inside (or on) the sphere: it emits outward only
+  const Vector3f arriving = radiance_toward(from);
+  if (!emits_radiance(arriving)) return out;  // outside its spot cone
   const double d = std::sqrt(d2);
   const double one_minus_cos = sphere_one_minus_cos(r2, d2);
   const Vector3d w = sample_cone(oc / d, one_minus_cos, u1, u2);
@@ -233,7 +291,7 @@ LightSample SphereLight::sample(const Vector3f& from, float u1, float u2) const 
   if (!(distance > 0.0)) return out;
   out.direction = w.cast<float>();
   out.distance = static_cast<float>(distance);
-  out.radiance = radiance;
+  out.radiance = arriving;
   out.pdf = static_cast<float>(1.0 / (2.0 * kPiD * one_minus_cos));
   if (!std::isfinite(out.pdf)) out = LightSample{};
   return out;
@@ -252,6 +310,76 @@ bool SphereLight::intersect(const Vector3f& origin, const Vector3f& direction, f
   t = static_cast<float>(b - std::sqrt(r2 - perp2));
   pdf = static_cast<float>(1.0 / (2.0 * kPiD * sphere_one_minus_cos(r2, d2)));
   return t > 0.f && std::isfinite(pdf);
+}
+
+double DiscLight::area() const { return kPiD * static_cast<double>(radius) * radius; }
+
+bool DiscLight::emits() const {
+  return centre.allFinite() && normal.allFinite() && normal.norm() > 0.f && std::isfinite(radius) &&
+         radius > kMinDiscLightRadius && emits_radiance(radiance);
+}
+
+LightSample DiscLight::sample(const Vector3f& from, float u1, float u2) const {
+  LightSample out;
+  if (!emits()) return out;
+  const Vector3d n = normal.cast<double>().normalized();
+  Vector3d t, b;
+  orthonormal_basis(n, t, b);
+  const Eigen::Vector2d q = static_cast<double>(radius) * concentric_disc(u1, u2);
+  Vector3d to = centre.cast<double>() + q.x() * t + q.y() * b - from.cast<double>();
+  const double dist2 = to.squaredNorm();
+  if (!(dist2 > kMinLightDistance * kMinLightDistance)) return out;
+  const double dist = std::sqrt(dist2);
+  to /= dist;
+  const double cos_light = -to.dot(n);
+  if (!(cos_light > kMinLightCosine)) return out;  // behind or edge-on
+  out.direction = to.cast<float>();
+  out.distance = static_cast<float>(dist);
+  out.radiance = radiance;
+  out.pdf = static_cast<float>(dist2 / (cos_light * area()));
+  if (!std::isfinite(out.pdf)) out = LightSample{};
+  return out;
+}
+
+bool DiscLight::intersect(const Vector3f& origin, const Vector3f& direction, float& t, float& pdf) const {
+  if (!emits()) return false;
+  const Vector3d o = origin.cast<double>(), w = direction.cast<double>().normalized();
+  const Vector3d n = normal.cast<double>().normalized();
+  const double cos_light = -w.dot(n);
+  if (!(cos_light > kMinLightCosine)) return false;  // parallel, or arriving at the back
+  const double distance = (centre.cast<double>() - o).dot(n) / w.dot(n);
+  if (!(distance > kMinLightDistance)) return false;
+  const Vector3d q = o + distance * w - centre.cast<double>();
+  const double r = radius;
+  if (q.squaredNorm() > r * r) return false;
+  t = static_cast<float>(distance);
+  pdf = static_cast<float>(distance * distance / (cos_light * area()));
+  return std::isfinite(pdf);
+}
+
+bool PointLight::emits() const {
+  return position.allFinite() && emits_radiance(intensity) && (!spot || spot->valid());
+}
+
+LightSample PointLight::sample(const Vector3f& from, float /*u1*/, float /*u2*/) const {
+  LightSample out;
+  if (!emits()) return out;
+  Vector3d to = position.cast<double>() - from.cast<double>();
+  const double dist2 = to.squaredNorm();
+  // At the light itself there is no direction and I/d^2 has no limit.
+  if (!(dist2 > kMinLightDistance * kMinLightDistance)) return out;
+  const double dist = std::sqrt(dist2);
+  to /= dist;
+  const double scale = (spot ? spot->attenuation(-to) : 1.0) / dist2;
+  const Vector3d arriving = intensity.cast<double>() * scale;
+  if (!(arriving.maxCoeff() > 0.0) || !arriving.allFinite()) return out;
+  out.direction = to.cast<float>();
+  out.distance = static_cast<float>(dist);
+  out.radiance = arriving.cast<float>();
+  if (!out.radiance.allFinite()) return LightSample{};
+  out.pdf = 1.f;
+  out.delta = true;
+  return out;
 }
 
 bool SunLight::emits() const {
@@ -293,15 +421,13 @@ float SunLight::pdf(const Vector3f& dir) const {
 
 LightRig LightRig::only(int index) const {
   LightRig rig;
-  const int n_area = static_cast<int>(area_lights.size());
-  const int n_sphere = static_cast<int>(sphere_lights.size());
-  const int n_sun = static_cast<int>(suns.size());
-  if (index < 0) throw std::out_of_range("light index out of range");
-  if (index < n_area) rig.area_lights.push_back(area_lights[index]);
-  else if (index < n_area + n_sphere) rig.sphere_lights.push_back(sphere_lights[index - n_area]);
-  else if (index < n_area + n_sphere + n_sun) rig.suns.push_back(suns[index - n_area - n_sphere]);
-  else if (index == n_area + n_sphere + n_sun && environment) rig.environment = environment;
-  else throw std::out_of_range("light index out of range");
+  if (index < 0 || index >= count()) throw std::out_of_range("light index out of range");
+  if (index < first_sphere()) rig.area_lights.push_back(area_lights[index]);
+  else if (index < first_sun()) rig.sphere_lights.push_back(sphere_lights[index - first_sphere()]);
+  else if (index < first_disc()) rig.suns.push_back(suns[index - first_sun()]);
+  else if (index < first_point()) rig.disc_lights.push_back(disc_lights[index - first_disc()]);
+  else if (index < environment_index()) rig.point_lights.push_back(point_lights[index - first_point()]);
+  else rig.environment = environment;
   return rig;
 }
 

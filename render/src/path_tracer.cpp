@@ -73,11 +73,7 @@ class PathIntegrator {
         caustics_(settings.caustics),
         prop_interreflection_(settings.prop_interreflection) {}
 
-  // Rig order of the first sphere light, sun and the environment, and the
-  // slot for emissive surfaces.
-  int sphere_base() const { return static_cast<int>(lights_.area_lights.size()); }
-  int sun_base() const { return sphere_base() + static_cast<int>(lights_.sphere_lights.size()); }
-  int environment_index() const { return sun_base() + static_cast<int>(lights_.suns.size()); }
+  // The slot for emissive surfaces, after the rig's lights (LightRig order).
   int emissive_slot() const { return lights_.count(); }
 
   PathResult trace(Eigen::Vector3f origin, Eigen::Vector3f direction, SobolSampler& sampler, bool with_props) const {
@@ -178,21 +174,24 @@ class PathIntegrator {
   }
 
   // Radiance of the lights the ray origin + t*direction meets before t_hit
-  // (area and sphere lights; suns and the environment when it escapes).
-  // `camera`: the ray is the camera's, weight 1; otherwise it was sampled from
-  // a BSDF with density bsdf_pdf, weighted by the power heuristic.
+  // (area, disc and sphere lights; suns and the environment when it escapes;
+  // never a point light). `camera`: the ray is the camera's, weight 1, and
+  // lights hidden from the camera are not seen (they still stand for an
+  // emissive surface behind them); otherwise it was sampled from a BSDF with
+  // density bsdf_pdf, weighted by the power heuristic.
   template <typename Add>
   void emitted_along(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction, float t_hit, bool camera,
                      float bsdf_pdf, bool with_props, bool& light_in_front, PathResult& result, const Add& add) const {
     const auto weight = [&](float light_pdf) { return camera ? 1.f : detail::power_heuristic(bsdf_pdf, light_pdf); };
+    const auto seen = [&](bool visible_to_camera) { return !camera || visible_to_camera; };
     float t = 0.f, light_pdf = 0.f;
-    int index = 0;
     // The same visibility rule as the shadow rays: blocked only by a surface
     // nearer than the shortened distance.
     const auto in_front = [&](float t_light) { return t_light * (1.f - kShadowShortening) < t_hit; };
+    int index = 0;
     for (const AreaLight& light : lights_.area_lights) {
       if (light.intersect(origin, direction, t, light_pdf) && in_front(t)) {
-        add(index, light.radiance * weight(light_pdf));
+        if (seen(light.visible_to_camera)) add(index, light.radiance * weight(light_pdf));
         light_in_front = true;
       }
       ++index;
@@ -200,20 +199,31 @@ class PathIntegrator {
     for (const SphereLight& light : lights_.sphere_lights) {
       // A prop's lamp is absent from the world without props; its light is a change the prop makes.
       if ((with_props || !light.prop_only) && light.intersect(origin, direction, t, light_pdf) && in_front(t)) {
-        add(index, light.radiance * weight(light_pdf));
+        if (seen(light.visible_to_camera)) add(index, light.radiance_toward(origin) * weight(light_pdf));
         light_in_front = true;
         if (light.prop_only) result.touched_prop = true;
       }
       ++index;
     }
-    if (t_hit < kInfinity) return;
-    for (const SunLight& sun : lights_.suns) {
-      const float p = sun.pdf(direction);
-      if (p > 0.f) add(index, sun.radiance() * weight(p));
+    index = lights_.first_disc();
+    for (const DiscLight& light : lights_.disc_lights) {
+      if (light.intersect(origin, direction, t, light_pdf) && in_front(t)) {
+        if (seen(light.visible_to_camera)) add(index, light.radiance * weight(light_pdf));
+        light_in_front = true;
+      }
       ++index;
     }
-    if (lights_.environment)
-      add(index, lights_.environment->radiance(direction) * weight(lights_.environment->pdf(direction)));
+    // Point lights are deltas: no ray meets them.
+    if (t_hit < kInfinity) return;
+    index = lights_.first_sun();
+    for (const SunLight& sun : lights_.suns) {
+      const float p = sun.pdf(direction);
+      if (p > 0.f && seen(sun.visible_to_camera)) add(index, sun.radiance() * weight(p));
+      ++index;
+    }
+    const EnvironmentLight* environment = lights_.environment.get();
+    if (environment && seen(environment->visible_to_camera()))
+      add(lights_.environment_index(), environment->radiance(direction) * weight(environment->pdf(direction)));
   }
 
   // Next-event estimation: one sample toward every light, MIS-weighted
@@ -235,7 +245,8 @@ class PathIntegrator {
           offset_origin(sp.position, cos_geometric > 0.f ? sp.geometric_normal : Eigen::Vector3f(-sp.geometric_normal));
       const float distance = std::isinf(ls.distance) ? kInfinity : ls.distance * (1.f - kShadowShortening);
       if (shadowed(origin, ls.direction, distance, with_props, result)) return Eigen::Vector3f::Zero();
-      const float weight = detail::power_heuristic(ls.pdf, bsdf.pdf(wo, wi));
+      // A delta light's density is infinite: BSDF sampling never finds it, weight 1.
+      const float weight = detail::power_heuristic(ls.delta ? kInfinity : ls.pdf, bsdf.pdf(wo, wi));
       return f.cwiseProduct(ls.radiance) * (std::abs(wi.z()) * weight / ls.pdf);
     };
     // Two numbers per light whether it emits or not: the streams of the
@@ -258,6 +269,14 @@ class PathIntegrator {
     for (const SunLight& sun : lights_.suns) {
       const Eigen::Vector2f u = sampler.get2d();
       add(index++, connect(sun.sample(u.x(), u.y())));
+    }
+    for (const DiscLight& light : lights_.disc_lights) {
+      const Eigen::Vector2f u = sampler.get2d();
+      add(index++, connect(light.sample(sp.position, u.x(), u.y())));
+    }
+    for (const PointLight& light : lights_.point_lights) {
+      const Eigen::Vector2f u = sampler.get2d();  // unused: kept for the streams' alignment
+      add(index++, connect(light.sample(sp.position, u.x(), u.y())));
     }
     if (lights_.environment) {
       const Eigen::Vector2f u = sampler.get2d();

@@ -175,19 +175,40 @@ PropReach estimate_prop_reach(const Scene& scene, const PinholeCamera& camera, c
             ++reach.pixels_near;
           } else {
             const float prop_angle = angular_radius(radius, prop_distance);
-            for (const SphereLight& l : lights.sphere_lights) {
-              if (affected || !l.emits()) break;
-              const Vector3f to_light = l.center - p;
+            // p lies in the prop's shadow cone from a light of this centre and radius.
+            const auto shadowed_by = [&](const Vector3f& light_centre, float light_radius) {
+              const Vector3f to_light = light_centre - p;
               const float light_distance = to_light.norm();
-              if (light_distance > prop_distance - radius &&
-                  angle_between(to_prop, to_light) < prop_angle + angular_radius(l.radius, light_distance)) {
+              return light_distance > prop_distance - radius &&
+                     angle_between(to_prop, to_light) < prop_angle + angular_radius(light_radius, light_distance);
+            };
+            // Spots are taken as whole spheres and points (their cones
+            // ignored): a wider reach costs tiles, never a missed shadow.
+            for (const SphereLight& l : lights.sphere_lights) {
+              if (affected) break;
+              if (l.emits() && shadowed_by(l.center, l.radius)) {
+                affected = true;
+                ++reach.pixels_in_sphere_or_sun_shadow;
+              }
+            }
+            for (const PointLight& l : lights.point_lights) {
+              if (affected) break;
+              if (l.emits() && shadowed_by(l.position, 0.f)) {
+                affected = true;
+                ++reach.pixels_in_sphere_or_sun_shadow;
+              }
+            }
+            for (const DiscLight& l : lights.disc_lights) {
+              if (affected) break;
+              const bool lit_side = l.normal.dot(p - l.centre) > 0.f;  // a disc lights one side
+              if (l.emits() && lit_side && shadowed_by(l.centre, l.radius)) {
                 affected = true;
                 ++reach.pixels_in_sphere_or_sun_shadow;
               }
             }
             for (const SunLight& s : lights.suns) {
-              if (affected || !s.emits()) break;
-              if (angle_between(to_prop, s.direction) < prop_angle + static_cast<float>(s.angular_radius)) {
+              if (affected) break;
+              if (s.emits() && angle_between(to_prop, s.direction) < prop_angle + static_cast<float>(s.angular_radius)) {
                 affected = true;
                 ++reach.pixels_in_sphere_or_sun_shadow;
               }

@@ -36,6 +36,13 @@ constexpr double kMinTransformDeterminant = 1e-12;
 constexpr double kMaxSunAngleDeg = 30.0;
 // A direction or normal shorter than this has none.
 constexpr double kMinDirectionLength = 1e-9;
+// Largest light intensity (any unit) and light radius (m) a scene may give.
+constexpr double kMaxIntensity = 1e9;
+constexpr double kMaxLightRadius = 1e6;
+// A rectangle's turn about its normal, in degrees, lies within +-this.
+constexpr double kMaxRotationDeg = 360.0;
+// A spot's full cone angle is at most this (Blender's spot_size range).
+constexpr double kMaxSpotConeDeg = 180.0;
 
 class Reader {
  public:
@@ -87,6 +94,10 @@ class Reader {
     if (v != std::floor(v)) fail(field, "expected an integer");
     if (v < lo || v > hi) fail(field, out_of_range(v, lo, hi));
     return static_cast<int>(v);
+  }
+  bool boolean(const json& j, const std::string& field) const {
+    if (!j.is_boolean()) fail(field, std::string("expected true or false, got ") + j.type_name());
+    return j.get<bool>();
   }
   std::string string(const json& j, const std::string& field) const {
     if (!j.is_string()) fail(field, std::string("expected a string, got ") + j.type_name());
@@ -232,56 +243,152 @@ Mesh read_mesh(const Reader& r, const json& j, const std::string& f) {
   return mesh;
 }
 
+// Optional "visible_to_camera" (default true).
+bool visible_to_camera(const Reader& r, const json& j, const std::string& f) {
+  const json* v = Reader::optional(j, "visible_to_camera");
+  return v ? r.boolean(*v, f + ".visible_to_camera") : true;
+}
+
+// A light radius: 0 only where `zero_allowed` (a spot's point), else at least
+// the smallest radius a sphere light can have.
+double light_radius(const Reader& r, const json& j, const std::string& f, bool zero_allowed) {
+  const double radius = r.number(r.required(j, f, "radius"), f + ".radius", 0.0, kMaxLightRadius);
+  if (radius == 0.0 && !zero_allowed)
+    r.fail(f + ".radius", "a sphere of radius 0 emits nothing: give type point (intensity in W/sr)");
+  if (radius > 0.0 && radius < kMinSphereLightRadius)
+    r.fail(f + ".radius", "must be 0 (a point) or at least " + std::to_string(kMinSphereLightRadius) + " m");
+  return radius;
+}
+
+void read_area(const Reader& r, const json& j, const std::string& f, LightRig& rig) {
+  r.only_fields(j, f, {"type", "position", "normal", "size", "rotation_deg", "intensity", "visible_to_camera", "name"});
+  const Vector3d position = r.vec3(r.required(j, f, "position"), f + ".position");
+  const Vector3d n = r.direction(r.required(j, f, "normal"), f + ".normal");
+  const Eigen::VectorXd size = r.numbers(r.required(j, f, "size"), f + ".size", 2);
+  if (size.minCoeff() < 0) r.fail(f + ".size", "must not be negative");
+  // Width along the horizontal tangent Y x normal (+X for a vertical normal),
+  // height along normal x tangent, so that edge_u x edge_v faces along the
+  // normal; then both turned by rotation_deg about the normal (right-handed:
+  // counter-clockwise seen from the lit side).
+  Vector3d t = Vector3d::UnitY().cross(n);
+  t = t.norm() > kMinDirectionLength ? Vector3d(t.normalized()) : Vector3d::UnitX();
+  double turn = 0.0;
+  if (const json* v = Reader::optional(j, "rotation_deg"))
+    turn = r.number(*v, f + ".rotation_deg", -kMaxRotationDeg, kMaxRotationDeg) * std::numbers::pi / 180.0;
+  const Vector3d b0 = n.cross(t);
+  const Vector3d u = std::cos(turn) * t + std::sin(turn) * b0;
+  const Vector3d v = n.cross(u);
+  AreaLight light;
+  light.edge_u = (size[0] * u).cast<float>();
+  light.edge_v = (size[1] * v).cast<float>();
+  light.corner = (position - 0.5 * size[0] * u - 0.5 * size[1] * v).cast<float>();
+  light.radiance = r.rgb(r.required(j, f, "intensity"), f + ".intensity", 0.0, kMaxIntensity);
+  light.visible_to_camera = visible_to_camera(r, j, f);
+  rig.area_lights.push_back(light);
+}
+
+void read_disc(const Reader& r, const json& j, const std::string& f, LightRig& rig) {
+  r.only_fields(j, f, {"type", "position", "normal", "radius", "intensity", "visible_to_camera", "name"});
+  DiscLight light;
+  light.centre = r.vec3(r.required(j, f, "position"), f + ".position").cast<float>();
+  light.normal = r.direction(r.required(j, f, "normal"), f + ".normal").cast<float>();
+  light.radius = static_cast<float>(r.number(r.required(j, f, "radius"), f + ".radius", 0.0, kMaxLightRadius));
+  light.radiance = r.rgb(r.required(j, f, "intensity"), f + ".intensity", 0.0, kMaxIntensity);
+  light.visible_to_camera = visible_to_camera(r, j, f);
+  rig.disc_lights.push_back(light);
+}
+
+void read_sphere(const Reader& r, const json& j, const std::string& f, LightRig& rig) {
+  r.only_fields(j, f, {"type", "position", "radius", "intensity", "visible_to_camera", "name"});
+  SphereLight light;
+  light.center = r.vec3(r.required(j, f, "position"), f + ".position").cast<float>();
+  light.radius = static_cast<float>(light_radius(r, j, f, false));
+  light.radiance = r.rgb(r.required(j, f, "intensity"), f + ".intensity", 0.0, kMaxIntensity);
+  light.visible_to_camera = visible_to_camera(r, j, f);
+  rig.sphere_lights.push_back(light);
+}
+
+void read_point(const Reader& r, const json& j, const std::string& f, LightRig& rig) {
+  // visible_to_camera is taken for symmetry: a point is never seen anyway.
+  r.only_fields(j, f, {"type", "position", "intensity", "visible_to_camera", "name"});
+  PointLight light;
+  light.position = r.vec3(r.required(j, f, "position"), f + ".position").cast<float>();
+  light.intensity = r.rgb(r.required(j, f, "intensity"), f + ".intensity", 0.0, kMaxIntensity);
+  visible_to_camera(r, j, f);
+  rig.point_lights.push_back(light);
+}
+
+// A spot: a sphere light of `radius` (intensity = radiance) or, with radius 0,
+// a point light (intensity in W/sr), inside a cone of full angle
+// cone_angle_deg (Blender's spot_size) with a soft edge `blend` (spot_blend).
+void read_spot(const Reader& r, const json& j, const std::string& f, LightRig& rig) {
+  r.only_fields(j, f, {"type", "position", "direction", "cone_angle_deg", "blend", "radius", "intensity",
+                       "visible_to_camera", "name"});
+  const Vector3f position = r.vec3(r.required(j, f, "position"), f + ".position").cast<float>();
+  SpotCone cone;
+  cone.direction = r.direction(r.required(j, f, "direction"), f + ".direction").cast<float>();
+  const double angle = r.number(r.required(j, f, "cone_angle_deg"), f + ".cone_angle_deg", 0.0, kMaxSpotConeDeg);
+  cone.half_angle = 0.5 * angle * std::numbers::pi / 180.0;
+  if (const json* v = Reader::optional(j, "blend")) cone.blend = r.number(*v, f + ".blend", 0.0, 1.0);
+  const double radius = light_radius(r, j, f, true);
+  const Vector3f intensity = r.rgb(r.required(j, f, "intensity"), f + ".intensity", 0.0, kMaxIntensity);
+  const bool visible = visible_to_camera(r, j, f);
+  if (radius == 0.0) {
+    PointLight light;
+    light.position = position;
+    light.intensity = intensity;
+    light.spot = cone;
+    rig.point_lights.push_back(light);
+  } else {
+    SphereLight light;
+    light.center = position;
+    light.radius = static_cast<float>(radius);
+    light.radiance = intensity;
+    light.spot = cone;
+    light.visible_to_camera = visible;
+    rig.sphere_lights.push_back(light);
+  }
+}
+
+void read_sun(const Reader& r, const json& j, const std::string& f, LightRig& rig) {
+  r.only_fields(j, f, {"type", "direction", "intensity", "angle_deg", "visible_to_camera", "name"});
+  SunLight sun;
+  sun.direction = r.direction(r.required(j, f, "direction"), f + ".direction").cast<float>();
+  sun.irradiance = r.rgb(r.required(j, f, "intensity"), f + ".intensity", 0.0, kMaxIntensity);
+  double angle = kSunAngularRadiusDeg;
+  if (const json* v = Reader::optional(j, "angle_deg")) angle = r.number(*v, f + ".angle_deg", 0.0, kMaxSunAngleDeg);
+  sun.angular_radius = angle * std::numbers::pi / 180.0;
+  sun.visible_to_camera = visible_to_camera(r, j, f);
+  rig.suns.push_back(sun);
+}
+
+void read_ibl(const Reader& r, const json& j, const std::string& f, LightRig& rig) {
+  r.only_fields(j, f, {"type", "file", "intensity", "visible_to_camera", "name"});
+  if (rig.environment) r.fail(f, "a scene holds one ibl light");
+  const std::string path = r.file(r.required(j, f, "file"), f + ".file");
+  const Vector3f scale = j.contains("intensity") ? r.rgb(j["intensity"], f + ".intensity", 0.0, kMaxIntensity)
+                                                 : Vector3f::Ones();
+  const bool visible = visible_to_camera(r, j, f);
+  cv::Mat image;
+  try {
+    image = capture::load_photo_linear(path);
+  } catch (const std::exception& e) {
+    r.fail(f + ".file", e.what());
+  }
+  rig.environment = std::make_shared<EnvironmentLight>(image, scale);
+  rig.environment->set_visible_to_camera(visible);
+}
+
 void read_light(const Reader& r, const json& j, const std::string& f, LightRig& rig) {
   const std::string type = r.string(r.required(j, f, "type"), f + ".type");
-  if (type == "area") {
-    r.only_fields(j, f, {"type", "position", "normal", "size", "intensity", "name"});
-    const Vector3d position = r.vec3(r.required(j, f, "position"), f + ".position");
-    const Vector3d n = r.direction(r.required(j, f, "normal"), f + ".normal");
-    const Eigen::VectorXd size = r.numbers(r.required(j, f, "size"), f + ".size", 2);
-    if (size.minCoeff() < 0) r.fail(f + ".size", "must not be negative");
-    // Width along the horizontal tangent Y x normal (+X for a vertical normal),
-    // height along normal x tangent, so that edge_u x edge_v faces along the normal.
-    Vector3d t = Vector3d::UnitY().cross(n);
-    t = t.norm() > kMinDirectionLength ? Vector3d(t.normalized()) : Vector3d::UnitX();
-    const Vector3d b = n.cross(t);
-    AreaLight light;
-    light.edge_u = (size[0] * t).cast<float>();
-    light.edge_v = (size[1] * b).cast<float>();
-    light.corner = (position - 0.5 * size[0] * t - 0.5 * size[1] * b).cast<float>();
-    light.radiance = r.rgb(r.required(j, f, "intensity"), f + ".intensity", 0.0, 1e9);
-    rig.area_lights.push_back(light);
-  } else if (type == "sphere") {
-    r.only_fields(j, f, {"type", "position", "radius", "intensity", "name"});
-    SphereLight light;
-    light.center = r.vec3(r.required(j, f, "position"), f + ".position").cast<float>();
-    light.radius = static_cast<float>(r.number(r.required(j, f, "radius"), f + ".radius", 0.0, 1e6));
-    light.radiance = r.rgb(r.required(j, f, "intensity"), f + ".intensity", 0.0, 1e9);
-    rig.sphere_lights.push_back(light);
-  } else if (type == "sun") {
-    r.only_fields(j, f, {"type", "direction", "intensity", "angle_deg", "name"});
-    SunLight sun;
-    sun.direction = r.direction(r.required(j, f, "direction"), f + ".direction").cast<float>();
-    sun.irradiance = r.rgb(r.required(j, f, "intensity"), f + ".intensity", 0.0, 1e9);
-    double angle = kSunAngularRadiusDeg;
-    if (const json* v = Reader::optional(j, "angle_deg")) angle = r.number(*v, f + ".angle_deg", 0.0, kMaxSunAngleDeg);
-    sun.angular_radius = angle * std::numbers::pi / 180.0;
-    rig.suns.push_back(sun);
-  } else if (type == "ibl") {
-    r.only_fields(j, f, {"type", "file", "intensity", "name"});
-    if (rig.environment) r.fail(f, "a scene holds one ibl light");
-    const std::string path = r.file(r.required(j, f, "file"), f + ".file");
-    const Vector3f scale = j.contains("intensity") ? r.rgb(j["intensity"], f + ".intensity", 0.0, 1e9) : Vector3f::Ones();
-    cv::Mat image;
-    try {
-      image = capture::load_photo_linear(path);
-    } catch (const std::exception& e) {
-      r.fail(f + ".file", e.what());
-    }
-    rig.environment = std::make_shared<EnvironmentLight>(image, scale);
-  } else {
-    r.fail(f + ".type", "unknown light type '" + type + "' (expected area|sphere|sun|ibl)");
-  }
+  if (type == "area") read_area(r, j, f, rig);
+  else if (type == "disc") read_disc(r, j, f, rig);
+  else if (type == "sphere") read_sphere(r, j, f, rig);
+  else if (type == "spot") read_spot(r, j, f, rig);
+  else if (type == "point") read_point(r, j, f, rig);
+  else if (type == "sun") read_sun(r, j, f, rig);
+  else if (type == "ibl") read_ibl(r, j, f, rig);
+  else r.fail(f + ".type", "unknown light type '" + type + "' (expected area|disc|sphere|spot|point|sun|ibl)");
 }
 
 }  // namespace

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <optional>
 #include <sstream>
 
 namespace propcam::render {
@@ -18,6 +19,20 @@ constexpr float kSpecularMaxRoughness = 0.3f;
 constexpr double kContactHemisphereShare = 0.25;
 
 float luminance(const Vector3f& c) { return 0.2126f * c.x() + 0.7152f * c.y() + 0.0722f * c.z(); }
+
+// The largest share of a spot's light any point of the props' bounding
+// sphere gets: its cone's attenuation at the sphere's point nearest the
+// axis (1 for a light without a cone, and for props around the light).
+double spot_reach(const std::optional<SpotCone>& spot, const Vector3f& light, const Vector3f& centre, float radius) {
+  if (!spot) return 1.0;
+  const Eigen::Vector3d to = (centre - light).cast<double>();
+  const double distance = to.norm();
+  if (!(distance > radius)) return 1.0;
+  const Eigen::Vector3d axis = spot->direction.cast<double>().normalized();
+  const double to_centre = std::acos(std::clamp(axis.dot(to) / distance, -1.0, 1.0));
+  const double nearest = std::max(0.0, to_centre - std::asin(radius / distance));
+  return spot->attenuation_at_cos(std::cos(nearest));
+}
 
 std::string percent(double v) {
   std::ostringstream out;
@@ -72,12 +87,25 @@ TransportPlan plan_transport(const Scene& scene, const LightRig& lights, const R
   for (const SphereLight& l : lights.sphere_lights) {
     const double d2 = std::max<double>((l.center - centre).squaredNorm(), radius * radius + 1e-6);
     solid_angle[index] = std::min(2 * kPi, kPi * l.radius * l.radius / d2);
-    irradiance[index] = luminance(l.radiance) * solid_angle[index];
+    irradiance[index] = luminance(l.radiance) * solid_angle[index] * spot_reach(l.spot, l.center, centre, radius);
     ++index;
   }
   for (const SunLight& s : lights.suns) {
     solid_angle[index] = kPi * std::pow(std::sin(s.angular_radius), 2);
     irradiance[index] = s.emits() ? luminance(s.irradiance) : 0.0;
+    ++index;
+  }
+  for (const DiscLight& l : lights.disc_lights) {
+    const double d2 = std::max<double>((l.centre - centre).squaredNorm(), radius * radius + 1e-6);
+    solid_angle[index] = std::min(2 * kPi, l.area() / d2);
+    irradiance[index] = l.emits() ? luminance(l.radiance) * solid_angle[index] : 0.0;
+    ++index;
+  }
+  for (const PointLight& l : lights.point_lights) {
+    // A point subtends nothing: the smallest light there is (sharp caustics).
+    const double d2 = std::max<double>((l.position - centre).squaredNorm(), radius * radius + 1e-6);
+    solid_angle[index] = 0.0;
+    irradiance[index] = l.emits() ? luminance(l.intensity) / d2 * spot_reach(l.spot, l.position, centre, radius) : 0.0;
     ++index;
   }
   if (lights.environment) {
@@ -109,6 +137,10 @@ TransportPlan plan_transport(const Scene& scene, const LightRig& lights, const R
     if (keep(index++)) plan.lights.sphere_lights.push_back(l);
   for (const SunLight& s : lights.suns)
     if (keep(index++)) plan.lights.suns.push_back(s);
+  for (const DiscLight& l : lights.disc_lights)
+    if (keep(index++)) plan.lights.disc_lights.push_back(l);
+  for (const PointLight& l : lights.point_lights)
+    if (keep(index++)) plan.lights.point_lights.push_back(l);
   if (lights.environment && keep(index++)) plan.lights.environment = lights.environment;
 
   // Glossy paths: only materials that need them have them; say which.

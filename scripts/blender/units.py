@@ -2,7 +2,8 @@
 
 Axes: ours (x, y, z) = Blender (x, z, -y); ours is Y up, Blender Z up, both
 metres and right-handed. Our lights are scene-referred linear radiance
-(area, point), irradiance (sun) or a radiance map (ibl). The light-unit
+(area, disc, sphere, spot with a radius), intensity in W/sr (point, spot of
+radius 0), irradiance (sun) or a radiance map (ibl). The light-unit
 conversions below are the ones scripts/blender_units_check.sh measures
 (docs/blender_world.md): the generator and the check use these same functions.
 No Blender import here: usable from plain Python.
@@ -101,6 +102,49 @@ def point_light_sphere_radiance(color, power_w, radius_m):
     W/sr, emitted by a disc of radius r facing the shading point ~ our sphere of
     radius r with radiance I / (pi r^2)."""
     return [float(c) * power_w / (4.0 * math.pi) / (math.pi * radius_m ** 2) for c in color]
+
+
+def point_light_intensity(color, power_w):
+    """Blender point light of soft radius 0 (power P W): our `point` light of
+    intensity colour*P/(4 pi) W/sr (Cycles 3.4 gives a radius-0 light the
+    emission P/(4 pi) per steradian, so a surface at d facing it receives
+    I/d^2)."""
+    return [float(c) * power_w / (4.0 * math.pi) for c in color]
+
+
+def spot_light(color, power_w, radius_m, spot_size_rad, spot_blend):
+    """Blender spot light (power P W, soft radius r, spot_size = the cone's
+    full angle, spot_blend) -> the fields of our `spot` light. Its intensity
+    is the point light's: radiance colour*P/(4 pi)/(pi r^2) for r > 0 (our
+    sphere, as point_light_sphere_radiance), intensity colour*P/(4 pi) W/sr
+    for r = 0. The cone is Cycles 3.4's on both sides: cos(theta) times a
+    smoothstep over the band spot_blend*(1 - cos(spot_size/2)) of cosines
+    inside the edge (render/include/propcam/render/lights.h SpotCone)."""
+    intensity = (point_light_sphere_radiance(color, power_w, radius_m) if radius_m > 0
+                 else point_light_intensity(color, power_w))
+    return {"type": "spot", "radius": float(radius_m), "cone_angle_deg": math.degrees(spot_size_rad),
+            "blend": float(spot_blend), "intensity": intensity}
+
+
+def disc_light_radiance(color, power_w, radius_m):
+    """Blender area light of shape DISK (size = its diameter 2r, power P W):
+    our one-sided `disc` of radius r and radiance colour*P/(4 pi r^2), the
+    area light's rule with A = pi r^2."""
+    return area_light_radiance(color, power_w, math.pi * radius_m ** 2)
+
+
+def area_rotation_deg(normal_ours, axis_u_ours):
+    """The `rotation_deg` of our `area` light whose width runs along axis_u
+    (projected into the light's plane): the angle from our default width axis
+    (Y x normal, or +X for a vertical normal) about the normal, right-handed
+    (counter-clockwise seen from the lit side)."""
+    n = np.asarray(normal_ours, float)
+    n /= np.linalg.norm(n)
+    t = np.cross([0.0, 1.0, 0.0], n)
+    t = t / np.linalg.norm(t) if np.linalg.norm(t) > 1e-9 else np.array([1.0, 0.0, 0.0])
+    u = np.asarray(axis_u_ours, float)
+    u = u - n * (u @ n)
+    return math.degrees(math.atan2(np.cross(t, u) @ n, t @ u))
 
 
 def sun_irradiance(color, strength):

@@ -6,8 +6,15 @@ uses). Run by scripts/blender_units_check.sh:
       --out DIR --propcam PATH [--size 96x72] [--spp 256] [--bounces 4] [--threads 2]
 
 Cases: area_light (Blender AREA light), area_mesh (emissive quad), point_light
-(Blender POINT light with soft radius), point_mesh (emissive UV sphere), sun
-(Blender SUN), environment (equirectangular EXR world). --bounces B is
+(Blender POINT light with soft radius), point_mesh (emissive UV sphere),
+spot_light (SPOT with soft radius: our spot sphere), spot_point (SPOT of
+radius 0: our spot point), point_zero (POINT of radius 0: our point),
+disc_light (AREA DISK: our disc), area_turned (an AREA bar turned about
+its normal: our rotation_deg), area_seen and area_hidden (an AREA light in
+view with the object's camera ray visibility on and off: our
+visible_to_camera), sun (Blender SUN), environment (equirectangular EXR
+world). Light objects start with visible_camera False (measured in Blender
+3.4), so the other cases keep their lights out of view. --bounces B is
 Cycles' max_bounces and propcam's --bounces alike (0: direct light only).
 Prints a table of image means and the worst of 4x4 block means (a block's difference relative
 to its Cycles mean, or to the image mean where the block is darker); exits 1 when an image mean
@@ -155,12 +162,72 @@ def main():
                  "intensity": units.mesh_emission_radiance(color, S)}]
     results.append(c.run("emissive UV sphere 24x12 r %.2f m, strength %.1f" % (r, S)))
 
+    # spot: Blender SPOT shining along local -Z, turned to our direction d (local +Z toward -d)
+    from mathutils import Vector
+    d_spot = np.array([0.3, -1.0, -0.4])
+    d_spot /= np.linalg.norm(d_spot)
+    spot_rot = Vector(units.to_blender(-d_spot)).to_track_quat("Z", "Y").to_euler()
+    for name, r, size_deg, blend, P in (("spot_light", 0.1, 70.0, 0.3, 40.0), ("spot_point", 0.0, 50.0, 0.6, 30.0)):
+        c = Case(name, a)
+        room(c)
+        light_object("SPOT", (0.5, 2.3, 1.0), spot_rot, energy=P, shadow_soft_size=r,
+                     spot_size=math.radians(size_deg), spot_blend=blend, color=color)
+        spot = units.spot_light(color, P, r, math.radians(size_deg), blend)
+        spot.update({"position": [0.5, 2.3, 1.0], "direction": d_spot.tolist()})
+        c.lights = [spot]
+        results.append(c.run("SPOT %.1f W, soft radius %.2f m, spot_size %.0f deg, blend %.2f" % (P, r, size_deg, blend)))
+
+    c = Case("point_zero", a)
+    room(c)
+    P = 20.0
+    light_object("POINT", (0.5, 2.3, 1.0), (0, 0, 0), energy=P, shadow_soft_size=0.0, color=color)
+    c.lights = [{"type": "point", "position": [0.5, 2.3, 1.0], "intensity": units.point_light_intensity(color, P)}]
+    results.append(c.run("POINT power %.1f W, soft radius 0" % P))
+
+    # disc: Blender AREA light of shape DISK (size = diameter), one-sided along local -Z = our normal
+    c = Case("disc_light", a)
+    room(c)
+    r, P = 0.25, 3.0
+    n_disc = np.array([0.3, -1.0, 0.2])
+    n_disc /= np.linalg.norm(n_disc)
+    light_object("AREA", (-0.3, 2.7, 0.6), Vector(units.to_blender(-n_disc)).to_track_quat("Z", "Y").to_euler(),
+                 energy=P, shape="DISK", size=2 * r, color=color)
+    c.lights = [{"type": "disc", "position": [-0.3, 2.7, 0.6], "normal": n_disc.tolist(), "radius": r,
+                 "intensity": units.disc_light_radiance(color, P, r)}]
+    results.append(c.run("AREA DISK radius %.2f m, power %.1f W" % (r, P)))
+
+    # a long bar facing down just above the view, near the back wall, turned 30 degrees
+    # about its normal: our rotation_deg. Its left end comes within 0.15 m of the wall
+    # and throws a bright patch there (the opposite turn throws it on the right)
+    c = Case("area_turned", a)
+    room(c)
+    w, h, L, turn = 1.4, 0.1, 3.0, 30.0
+    centre = (0.0, 1.95, -1.5)
+    axis_u = [math.cos(math.radians(turn)), 0.0, math.sin(math.radians(turn))]
+    bcommon.area_light("bar", centre, (0, -1, 0), axis_u, w, h, color, L)
+    P = units.area_light_power(L, w * h)
+    c.lights = [{"type": "area", "position": list(centre), "normal": [0, -1, 0], "size": [w, h],
+                 "rotation_deg": units.area_rotation_deg([0, -1, 0], axis_u),
+                 "intensity": units.area_light_radiance(color, P, w * h), "visible_to_camera": False}]
+    results.append(c.run("AREA %.1fx%.1f m turned %.0f deg about its normal, power %.2f W" % (w, h, turn, P)))
+
+    # a panel in view on the back wall: Blender's object ray visibility "Camera"
+    # (visible_camera) is our visible_to_camera; hidden, both keep its light
+    for name, seen in (("area_seen", True), ("area_hidden", False)):
+        c = Case(name, a)
+        room(c)
+        w, h, L = 0.6, 0.4, 3.0
+        obj, P = bcommon.area_light("panel", (0.0, 1.4, -1.99), (0, 0, 1), (1, 0, 0), w, h, color, L)
+        obj.visible_camera = seen
+        c.lights = [{"type": "area", "position": [0.0, 1.4, -1.99], "normal": [0, 0, 1], "size": [w, h],
+                     "intensity": units.area_light_radiance(color, P, w * h), "visible_to_camera": seen}]
+        results.append(c.run("AREA %.1fx%.1f m in view, power %.2f W, visible_camera %s" % (w, h, P, seen)))
+
     c = Case("sun", a)
     ground(c)
     d = np.array([0.5, 0.7, 0.3])
     d /= np.linalg.norm(d)
     E, ang = 3.0, math.radians(2.0)
-    from mathutils import Vector
     sun = light_object("SUN", (0, 10, 0), (0, 0, 0), energy=E, angle=ang, color=color)
     sun.rotation_euler = Vector(units.to_blender(d)).to_track_quat("Z", "Y").to_euler()
     c.lights = [{"type": "sun", "direction": d.tolist(), "intensity": units.sun_irradiance(color, E),

@@ -1,6 +1,7 @@
-// Light sources in isolation: analytic irradiance from their own samples,
-// sample/intersect pdf agreement, degenerate lights, environment texel
-// clamping and the rig's light order.
+// Light sources in isolation: analytic irradiance from their own samples
+// (sphere, sun, rectangle, point, spot, disc), sample/intersect pdf
+// agreement, degenerate lights, environment texel clamping and the rig's
+// light order.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -288,24 +289,207 @@ TEST(Lights, TheLatlongsCentreColumnIsMinusZAndItsSeamPlusZ) {
   EXPECT_NEAR(EnvironmentLight::direction_to_uv({1, 0, 0}).x(), 0.75f, 1e-6f);
 }
 
-TEST(Lights, RigOrdersAreaSphereSunThenEnvironment) {
+TEST(Lights, RigOrdersAreaSphereSunDiscPointThenEnvironment) {
   LightRig rig;
   rig.area_lights.resize(2);
   rig.area_lights[1].radiance = Vector3f::Constant(2.f);
   rig.sphere_lights.resize(1);
   rig.suns.resize(1);
+  rig.disc_lights.resize(2);
+  rig.disc_lights[1].radius = 0.25f;
+  rig.point_lights.resize(1);
   rig.environment = std::make_shared<EnvironmentLight>(cv::Mat(2, 4, CV_32FC3, cv::Scalar::all(1.0)));
-  ASSERT_EQ(rig.count(), 5);
+  ASSERT_EQ(rig.count(), 8);
+  EXPECT_EQ(rig.first_sphere(), 2);
+  EXPECT_EQ(rig.first_sun(), 3);
+  EXPECT_EQ(rig.first_disc(), 4);
+  EXPECT_EQ(rig.first_point(), 6);
+  EXPECT_EQ(rig.environment_index(), 7);
   EXPECT_EQ(rig.only(1).area_lights.at(0).radiance.x(), 2.f);
   EXPECT_EQ(rig.only(2).sphere_lights.size(), 1u);
   EXPECT_EQ(rig.only(3).suns.size(), 1u);
-  EXPECT_TRUE(rig.only(4).environment);
+  EXPECT_EQ(rig.only(5).disc_lights.at(0).radius, 0.25f);
+  EXPECT_EQ(rig.only(6).point_lights.size(), 1u);
+  EXPECT_TRUE(rig.only(7).environment);
   for (int i = 0; i < rig.count(); ++i) EXPECT_EQ(rig.only(i).count(), 1);
-  EXPECT_THROW(rig.only(5), std::out_of_range);
+  EXPECT_THROW(rig.only(8), std::out_of_range);
   EXPECT_THROW(rig.only(-1), std::out_of_range);
   rig.environment.reset();
-  EXPECT_EQ(rig.count(), 4);
-  EXPECT_THROW(rig.only(4), std::out_of_range);
+  EXPECT_EQ(rig.count(), 7);
+  EXPECT_THROW(rig.only(7), std::out_of_range);
+  // A rig without discs and points keeps the old indices (area, sphere, sun, environment).
+  LightRig old;
+  old.area_lights.resize(1);
+  old.sphere_lights.resize(1);
+  old.suns.resize(1);
+  old.environment = std::make_shared<EnvironmentLight>(cv::Mat(2, 4, CV_32FC3, cv::Scalar::all(1.0)));
+  EXPECT_EQ(old.environment_index(), 3);
+  EXPECT_TRUE(old.only(3).environment);
+}
+
+// Cycles 3.4's spot profile, written out from the angle: cos(theta), times a
+// smoothstep over the band of cosines blend * (1 - cos h) inside the edge.
+double cycles_spot(double theta, double half_angle, double blend) {
+  const double c = std::cos(theta), ch = std::cos(half_angle);
+  if (c <= ch) return 0.0;
+  const double band = blend * (1.0 - ch);
+  if (c - ch >= band) return c;
+  const double x = (c - ch) / band;
+  return c * x * x * (3.0 - 2.0 * x);
+}
+
+// A direction at angle theta from -Y (a spot shining down), turned by phi about it.
+Eigen::Vector3d below_at(double theta, double phi = 0.3) {
+  return {std::sin(theta) * std::cos(phi), -std::cos(theta), std::sin(theta) * std::sin(phi)};
+}
+
+TEST(Lights, SpotConeFollowsCyclesProfile) {
+  SpotCone cone;  // 60 degrees wide (Blender spot_size), blend 0.5, shining down
+  cone.half_angle = kPi / 6;
+  cone.blend = 0.5;
+  for (double deg : {0.0, 5.0, 15.0, 20.0, 25.0, 29.0, 29.9, 30.0, 30.1, 45.0, 90.0, 135.0, 180.0}) {
+    const double theta = deg * kPi / 180.0;
+    EXPECT_NEAR(cone.attenuation(below_at(theta)), cycles_spot(theta, cone.half_angle, cone.blend), 1e-6) << deg;
+    EXPECT_NEAR(cone.attenuation(7.0 * below_at(theta)), cone.attenuation(below_at(theta)), 1e-12) << "scale-free";
+  }
+  // Inside the blend the profile lies strictly between 0 and cos(theta).
+  const double in_blend = cone.attenuation(below_at(25.0 * kPi / 180.0));
+  EXPECT_GT(in_blend, 0.1);
+  EXPECT_LT(in_blend, std::cos(25.0 * kPi / 180.0) - 0.1);
+  // A hard edge (blend 0) is cos(theta) right up to the edge.
+  cone.blend = 0.0;
+  EXPECT_NEAR(cone.attenuation(below_at(29.9 * kPi / 180.0)), std::cos(29.9 * kPi / 180.0), 1e-9);
+  EXPECT_EQ(cone.attenuation(below_at(30.1 * kPi / 180.0)), 0.0);
+}
+
+// A point light: E = I cos / d^2 from one (exact) sample, a delta with pdf 1.
+TEST(Lights, PointLightIrradianceIsIntensityCosOverDistanceSquared) {
+  PointLight light;
+  light.position = {0.3f, 2.f, -0.4f};
+  light.intensity = Vector3f(5.f, 4.f, 3.f);
+  const Vector3f p(0.1f, 0.f, 0.2f);
+  const LightSample s = light.sample(p);
+  ASSERT_TRUE(s.delta);
+  ASSERT_EQ(s.pdf, 1.f);
+  const Vector3f to = light.position - p;
+  const double d2 = to.squaredNorm();
+  EXPECT_NEAR(s.distance, std::sqrt(d2), 1e-6);
+  EXPECT_NEAR((s.direction - to.normalized()).norm(), 0.f, 1e-6f);
+  for (const Vector3f& n : {Vector3f(Vector3f::UnitY()), Vector3f(0.6f, 0.8f, 0.f), Vector3f(-0.8f, 0.6f, 0.f)}) {
+    const double cos_theta = std::max(0.f, to.normalized().dot(n));
+    const auto sample = [&](float u1, float u2) { return light.sample(p, u1, u2); };
+    EXPECT_NEAR(irradiance(n, sample, 7), 5.0 * cos_theta / d2, 1e-5) << n.transpose();
+  }
+  EXPECT_NEAR(s.radiance.y(), 4.0 / d2, 1e-5);
+}
+
+// A spot of radius 0 (a point in a cone): E = I spot(theta) cos / d^2 inside,
+// in the blend and outside the cone.
+TEST(Lights, PointSpotIrradianceInsideInTheBlendAndOutsideTheCone) {
+  PointLight light;
+  light.position = {0.f, 2.f, 0.f};
+  light.intensity = Vector3f::Constant(8.f);
+  SpotCone cone;
+  cone.half_angle = kPi / 6;
+  cone.blend = 0.5;
+  light.spot = cone;
+  for (double deg : {0.0, 10.0, 25.0, 28.0, 35.0, 60.0}) {
+    const double theta = deg * kPi / 180.0;
+    // Floor points (y = 0) seen from the light at theta.
+    const double r = 2.0 * std::tan(theta);
+    const Vector3f p(static_cast<float>(r), 0.f, 0.f);
+    const double d2 = 4.0 + r * r;
+    const double expected = 8.0 * cycles_spot(theta, cone.half_angle, cone.blend) * std::cos(theta) / d2;
+    const auto sample = [&](float u1, float u2) { return light.sample(p, u1, u2); };
+    EXPECT_NEAR(irradiance(Vector3f::UnitY(), sample, 8), expected, 1e-6 + 1e-5 * expected) << deg;
+    if (deg > 30.0) {
+      EXPECT_EQ(light.sample(p).pdf, 0.f) << "outside the cone: no sample, no shadow ray";
+    }
+  }
+}
+
+// A spot of radius r > 0 is a sphere light whose radiance a point receives
+// scaled by the cone's attenuation along centre -> point: facing it,
+// E = pi L (r/d)^2 spot(theta).
+TEST(Lights, SphereSpotIrradianceIsTheSpheresTimesTheCone) {
+  SphereLight light;
+  light.center = {0.f, 2.f, 0.f};
+  light.radius = 0.1f;
+  light.radiance = Vector3f::Constant(50.f);
+  SpotCone cone;
+  cone.half_angle = kPi / 4;
+  cone.blend = 0.3;
+  light.spot = cone;
+  for (double deg : {0.0, 30.0, 42.0, 50.0}) {
+    const double theta = deg * kPi / 180.0;
+    const Eigen::Vector3d p3 = Eigen::Vector3d(0, 2, 0) + 2.5 * below_at(theta);
+    const Vector3f p = p3.cast<float>();
+    const Vector3f facing = (light.center - p).normalized();
+    const double expected = kPi * 50.0 * std::pow(0.1 / 2.5, 2) * cycles_spot(theta, cone.half_angle, cone.blend);
+    const auto sample = [&](float u1, float u2) { return light.sample(p, u1, u2); };
+    EXPECT_NEAR(irradiance(facing, sample, 9), expected, 1e-6 + expected * kIrradianceTolerance) << deg;
+    // Rays from p that meet the sphere carry the same radiance as its samples.
+    EXPECT_NEAR(light.radiance_toward(p).x(), 50.0 * cycles_spot(theta, cone.half_angle, cone.blend), 1e-3) << deg;
+  }
+}
+
+// A one-sided disc of radiance L, radius r, seen on its axis from distance d:
+// E = pi L r^2 / (r^2 + d^2), whatever the disc's orientation in the world.
+TEST(Lights, DiscIrradianceOnItsAxisIsPiLr2OverR2PlusD2) {
+  struct Case {
+    float radius, distance;
+    Vector3f normal;
+  };
+  for (const Case& c : {Case{0.5f, 1.f, {0.f, -1.f, 0.f}}, Case{0.2f, 2.f, {0.3f, -1.f, 0.5f}},
+                        Case{1.f, 1.f, {0.f, 0.f, 1.f}}}) {
+    DiscLight disc;
+    disc.normal = c.normal.normalized();
+    disc.centre = Vector3f(0.1f, 0.4f, -0.2f);
+    disc.radius = c.radius;
+    disc.radiance = Vector3f::Constant(3.f);
+    const Vector3f p = disc.centre + c.distance * disc.normal;
+    const double r2 = c.radius * c.radius, d2 = c.distance * c.distance;
+    const double expected = kPi * 3.0 * r2 / (r2 + d2);
+    const auto sample = [&](float u1, float u2) { return disc.sample(p, u1, u2); };
+    EXPECT_NEAR(irradiance(-disc.normal, sample, 10), expected, expected * 0.01) << c.radius << " " << c.distance;
+    // Behind it, nothing.
+    EXPECT_EQ(disc.sample(disc.centre - c.distance * disc.normal, 0.3f, 0.7f).pdf, 0.f);
+  }
+}
+
+TEST(Lights, DiscSamplesHitTheDiscWithTheSamePdf) {
+  DiscLight disc;
+  disc.centre = {0.2f, 2.f, -0.3f};
+  disc.normal = Vector3f(0.2f, -1.f, 0.1f).normalized();
+  disc.radius = 0.4f;
+  const Vector3f p(0.1f, 0.f, 0.05f);
+  Rng rng(11, 11);
+  for (int i = 0; i < 2000; ++i) {
+    const LightSample s = disc.sample(p, rng.uniform(), rng.uniform());
+    ASSERT_GT(s.pdf, 0.f);
+    EXPECT_FALSE(s.delta);
+    // The sampled point lies on the disc.
+    const Vector3f q = p + s.distance * s.direction - disc.centre;
+    EXPECT_NEAR(q.dot(disc.normal), 0.f, 1e-5f);
+    EXPECT_LE(q.norm(), disc.radius * (1.f + 1e-5f));
+    float t = 0.f, pdf = 0.f;
+    ASSERT_TRUE(disc.intersect(p, s.direction, t, pdf));
+    EXPECT_NEAR(t, s.distance, 1e-4f);
+    EXPECT_NEAR(pdf, s.pdf, kPdfAgreement * s.pdf);
+  }
+  float t = 0.f, pdf = 0.f;
+  EXPECT_FALSE(disc.intersect(p, -Vector3f::UnitY(), t, pdf));                   // away from it
+  EXPECT_FALSE(disc.intersect({0.2f, 3.f, -0.3f}, -Vector3f::UnitY(), t, pdf));  // at its back
+  EXPECT_FALSE(disc.intersect(p, (Vector3f(1.5f, 2.f, -0.3f) - p).normalized(), t, pdf));  // past its rim
+  // The pdf integrates to 1 over the disc's solid angle: E[1/pdf] over its samples is that solid angle,
+  // and on the axis it is 2 pi (1 - d / sqrt(d^2 + r^2)).
+  DiscLight facing;
+  facing.centre = {0.f, 1.f, 0.f};
+  facing.radius = 0.5f;
+  double omega = 0.0;
+  const int n = 20000;
+  for (int i = 0; i < n; ++i) omega += 1.0 / facing.sample(Vector3f::Zero(), rng.uniform(), rng.uniform()).pdf / n;
+  EXPECT_NEAR(omega, 2 * kPi * (1.0 - 1.0 / std::sqrt(1.25)), 0.005 * omega);
 }
 
 }  // namespace

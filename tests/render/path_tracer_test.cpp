@@ -489,5 +489,173 @@ TEST(PathTracer, LightImagesFromSharedPathsMatchOneRenderPerLight) {
   for (int i = 0; i < lights.count(); ++i) EXPECT_EQ(cv::norm(layers[i], again[i], cv::NORM_INF), 0.0);
 }
 
+// Point, spot and disc lights on a white Lambertian floor, rendered (light
+// sampling, and for the disc MIS with BSDF sampling): the floor's radiance
+// under a point 2 m up is I / (pi d^2); under a spot pointing down the same
+// (cos 0 = 1), and 0 where its cone does not reach; under a disc of radiance
+// L and radius r, facing down, L r^2 / (r^2 + d^2); under a spot sphere
+// L (r/d)^2.
+TEST(PathTracer, PointSpotAndDiscLightsOnALambertianFloor) {
+  const auto scene = floor_scene(material(Material::Type::Diffuse, 1.f));
+  RenderSettings settings;
+  settings.samples_per_pixel = 64;
+  settings.max_bounces = 1;
+  const auto floor_radiance = [&](const LightRig& rig) { return cv::mean(render_image(*scene, patch_camera(), rig, settings))[0]; };
+  const double pi = std::numbers::pi;
+  SpotCone down;
+  down.direction = -Eigen::Vector3f::UnitY();
+  down.half_angle = pi / 6;
+  down.blend = 0.2;
+  SpotCone sideways = down;
+  sideways.direction = Eigen::Vector3f::UnitX();
+
+  LightRig point;
+  point.point_lights.push_back({Eigen::Vector3f(0.f, 2.f, 0.f), Eigen::Vector3f::Constant(10.f), std::nullopt});
+  const double point_expected = 10.0 / (pi * 4.0);
+  EXPECT_NEAR(floor_radiance(point), point_expected, point_expected * kRenderTolerance);
+
+  LightRig spot = point;
+  spot.point_lights[0].spot = down;
+  EXPECT_NEAR(floor_radiance(spot), point_expected, point_expected * kRenderTolerance);
+  spot.point_lights[0].spot = sideways;
+  EXPECT_EQ(floor_radiance(spot), 0.0);
+
+  LightRig disc;
+  DiscLight d;
+  d.centre = {0.f, 2.f, 0.f};
+  d.normal = -Eigen::Vector3f::UnitY();
+  d.radius = 0.5f;
+  d.radiance = Eigen::Vector3f::Constant(6.f);
+  disc.disc_lights.push_back(d);
+  const double disc_expected = 6.0 * 0.25 / (0.25 + 4.0);
+  EXPECT_NEAR(floor_radiance(disc), disc_expected, disc_expected * kRenderTolerance);
+  disc.disc_lights[0].normal = Eigen::Vector3f::UnitY();  // facing away: one-sided
+  EXPECT_EQ(floor_radiance(disc), 0.0);
+
+  LightRig sphere_spot;
+  SphereLight bulb;
+  bulb.center = {0.f, 2.f, 0.f};
+  bulb.radius = 0.4f;
+  bulb.radiance = Eigen::Vector3f::Constant(10.f);
+  bulb.spot = down;
+  sphere_spot.sphere_lights.push_back(bulb);
+  const double sphere_expected = 10.0 * std::pow(0.4 / 2.0, 2);
+  EXPECT_NEAR(floor_radiance(sphere_spot), sphere_expected, sphere_expected * kRenderTolerance);
+  sphere_spot.sphere_lights[0].spot = sideways;
+  EXPECT_EQ(floor_radiance(sphere_spot), 0.0);
+}
+
+// The per-light layers keep the rig order with the new kinds among the old
+// (area, sphere, sun, disc, point, environment): each layer matches a render
+// of LightRig::only(i).
+TEST(PathTracer, LightImagesKeepTheRigOrderWithDiscsAndPoints) {
+  Scene scene;
+  Material grey;
+  grey.albedo = {0.6f, 0.5f, 0.4f};
+  scene.add_mesh(floor_quad(3.f, grey), Layer::Background);
+  scene.add_mesh(sphere_mesh({0.2f, 0.3f, 0.f}, 0.3f, grey), Layer::Background);
+  scene.commit();
+  LightRig lights;
+  AreaLight panel;
+  panel.corner = {-1.5f, 1.5f, -0.25f};
+  panel.edge_u = {0.5f, 0.f, 0.f};
+  panel.edge_v = {0.f, 0.f, 0.5f};  // u x v points down
+  panel.radiance = {4.f, 4.f, 4.f};
+  lights.area_lights = {panel};
+  SphereLight bulb;
+  bulb.center = {-0.8f, 1.2f, 0.6f};
+  bulb.radius = 0.1f;
+  bulb.radiance = {30.f, 20.f, 10.f};
+  bulb.spot = SpotCone{};
+  lights.sphere_lights = {bulb};
+  SunLight sun;
+  sun.direction = {0.3f, 1.f, -0.2f};
+  sun.irradiance = {0.5f, 0.5f, 0.5f};
+  lights.suns = {sun};
+  DiscLight disc;
+  disc.centre = {1.f, 1.3f, 0.f};
+  disc.radius = 0.3f;
+  disc.radiance = {1.f, 3.f, 2.f};
+  lights.disc_lights = {disc};
+  PointLight point;
+  point.position = {0.5f, 1.f, 0.8f};
+  point.intensity = {1.f, 0.5f, 2.f};
+  lights.point_lights = {point};
+  lights.environment = std::make_shared<EnvironmentLight>(cv::Mat(16, 32, CV_32FC3, cv::Scalar(0.2, 0.3, 0.5)));
+  RenderSettings settings;
+  settings.samples_per_pixel = 32;
+  settings.max_bounces = 2;
+  const PinholeCamera camera = looking_down(16, 2.5);
+  const std::vector<cv::Mat> layers = render_background_light_images(scene, camera, lights, settings);
+  ASSERT_EQ(layers.size(), 6u);
+  for (int i = 0; i < lights.count(); ++i) {
+    const cv::Mat alone = render_background_image(scene, camera, lights.only(i), settings);
+    EXPECT_TRUE(cv::checkRange(layers[i]));
+    for (int c = 0; c < 3; ++c)
+      EXPECT_NEAR(cv::mean(layers[i])[c] / cv::mean(alone)[c], 1.0, 0.05) << "light " << i << " channel " << c;
+  }
+}
+
+// A light hidden from the camera: the pixels that see it lose exactly its
+// emission, every other pixel (its light on the floor, its reflection in a
+// mirror) is bit-identical, as with Cycles' camera ray visibility.
+TEST(PathTracer, CameraInvisibleLightsStillLightAndShowInReflections) {
+  RenderSettings settings;
+  settings.samples_per_pixel = 16;
+  settings.max_bounces = 2;
+  const PinholeCamera camera = looking_down(32, 3.0);  // x toward +X; tan of the half view 0.5
+  SphereLight bulb;
+  bulb.center = {0.6f, 1.f, 0.f};  // seen at x = 15.5 + 32 * 0.6 / 2 = 25.1 px, 1.6 px wide
+  bulb.radius = 0.1f;
+  bulb.radiance = Eigen::Vector3f::Constant(20.f);
+  LightRig visible, hidden;
+  visible.sphere_lights.push_back(bulb);
+  bulb.visible_to_camera = false;
+  hidden.sphere_lights.push_back(bulb);
+  const cv::Rect bulb_pixels(22, 12, 7, 8);
+  for (const Material& floor : {material(Material::Type::Diffuse, 1.f, Eigen::Vector3f::Constant(0.5f)),
+                                material(Material::Type::Metal, 0.f, Eigen::Vector3f::Constant(0.9f))}) {
+    SCOPED_TRACE(to_string(floor.type));
+    const auto scene = floor_scene(floor);
+    const cv::Mat seen = render_image(*scene, camera, visible, settings);
+    const cv::Mat unseen = render_image(*scene, camera, hidden, settings);
+    ASSERT_TRUE(cv::checkRange(unseen));
+    // Where the camera looks straight at it: only what lies behind it.
+    EXPECT_GT(seen.at<cv::Vec3f>(15, 25)[0], 10.f);
+    EXPECT_LT(unseen.at<cv::Vec3f>(15, 25)[0], 1.f);
+    // Everywhere else: the same image, bit for bit.
+    cv::Mat elsewhere(seen.size(), CV_8U, cv::Scalar(255));
+    elsewhere(bulb_pixels).setTo(0);
+    EXPECT_EQ(cv::norm(seen, unseen, cv::NORM_INF, elsewhere), 0.0);
+    if (floor.type == Material::Type::Metal) {
+      // Its mirror image (at 4 m: x = 15.5 + 32 * 0.15 = 20.3 px) is still there.
+      EXPECT_GT(unseen.at<cv::Vec3f>(15, 20)[0], 5.f);
+    } else {
+      // It lights the floor: about 0.5 L (r/h)^2 = 0.1 at its foot, less farther away.
+      EXPECT_GT(unseen.at<cv::Vec3f>(15, 22)[0], 0.05f);
+      EXPECT_GT(unseen.at<cv::Vec3f>(15, 22)[0], unseen.at<cv::Vec3f>(15, 10)[0]);
+      EXPECT_GT(unseen.at<cv::Vec3f>(15, 10)[0], 0.f);
+    }
+  }
+  // The environment hidden from a camera looking at the horizon: the sky goes
+  // black, the floor it lights stays the same.
+  PinholeCamera level = camera;
+  level.R_world_from_cam << 1, 0, 0, 0, -1, 0, 0, 0, -1;  // looking along -Z, image y down
+  level.center_world = {0, 1, 0};
+  const auto scene = floor_scene(material(Material::Type::Diffuse, 1.f, Eigen::Vector3f::Constant(0.5f)));
+  LightRig sky;
+  sky.environment = uniform_sky(1.f);
+  const cv::Mat with_sky = render_image(*scene, level, sky, settings);
+  auto dark_sky = std::make_shared<EnvironmentLight>(*sky.environment);
+  dark_sky->set_visible_to_camera(false);
+  sky.environment = dark_sky;
+  const cv::Mat without_sky = render_image(*scene, level, sky, settings);
+  const cv::Rect above(0, 0, 32, 14), below(0, 18, 32, 14);
+  EXPECT_EQ(cv::norm(without_sky(above), cv::NORM_INF), 0.0);
+  EXPECT_GT(cv::mean(with_sky(above))[0], 0.9);
+  EXPECT_EQ(cv::norm(with_sky(below), without_sky(below), cv::NORM_INF), 0.0);
+  EXPECT_GT(cv::mean(without_sky(below))[0], 0.2);
+}
+
 }  // namespace
 }  // namespace propcam::render

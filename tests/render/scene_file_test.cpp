@@ -5,6 +5,7 @@
 #include <fstream>
 #include <functional>
 #include <nlohmann/json.hpp>
+#include <cmath>
 #include <numbers>
 
 #include "propcam/capture/image_file.h"
@@ -40,6 +41,15 @@ json valid_scene() {
                {"type": "sphere", "position": [1, 1, 0], "radius": 0.1, "intensity": 3},
                {"type": "sun", "direction": [0, 2, 0], "intensity": [1, 1, 1]}]
   })");
+}
+
+json spot() {
+  return json::parse(R"({"type": "spot", "position": [0, 2, 0], "direction": [0, -1, 0], "cone_angle_deg": 45,
+                         "blend": 0.15, "radius": 0.1, "intensity": 10})");
+}
+
+json disc() {
+  return json::parse(R"({"type": "disc", "position": [0, 2, 0], "normal": [0, -1, 0], "radius": 0.2, "intensity": 3})");
 }
 
 fs::path write_scene(const fs::path& folder, const json& scene, const std::string& name = "scene.json") {
@@ -146,6 +156,74 @@ TEST(SceneFile, EnvironmentFromAnExrNextToTheScene) {
   expect_error(write_scene(folder, scene), {"lights[4]", "one ibl"});
 }
 
+// The newer light kinds and fields: spot (a sphere, or with radius 0 a
+// point, in a cone), point, disc, a rectangle turned about its normal, and
+// visible_to_camera on every light; rig order area, sphere, sun, disc, point.
+TEST(SceneFile, SpotPointDiscRotationAndCameraVisibility) {
+  const fs::path folder = test_folder();
+  cv::Mat sky(8, 16, CV_32FC3, cv::Scalar::all(0.5));
+  ASSERT_NO_THROW(capture::write_image((folder / "assets" / "sky.exr").string(), sky));
+  json scene = valid_scene();
+  scene["lights"][0]["rotation_deg"] = 90;
+  scene["lights"][0]["visible_to_camera"] = false;
+  scene["lights"][2]["visible_to_camera"] = false;
+  scene["lights"].push_back(json::parse(R"({"type": "spot", "position": [0, 2, 0], "direction": [0, -2, 0],
+      "cone_angle_deg": 60, "blend": 0.25, "radius": 0.05, "intensity": [40, 30, 20], "visible_to_camera": false})"));
+  scene["lights"].push_back(json::parse(R"({"type": "spot", "position": [0.5, 2, 0], "direction": [1, -1, 0],
+      "cone_angle_deg": 180, "radius": 0, "intensity": 7})"));
+  scene["lights"].push_back(json::parse(R"({"type": "point", "position": [-0.5, 1.5, 0], "intensity": [1, 2, 3]})"));
+  scene["lights"].push_back(json::parse(R"({"type": "disc", "position": [0, 2.5, 0.5], "normal": [0, -1, 0],
+      "radius": 0.3, "intensity": 4, "visible_to_camera": true})"));
+  scene["lights"].push_back(json::parse(R"({"type": "ibl", "file": "assets/sky.exr", "visible_to_camera": false})"));
+  const SceneFile file = load_scene_file(write_scene(folder, scene).string());
+  const LightRig& rig = file.lights;
+  // The rectangle turned 90 degrees about its normal (-Y, counter-clockwise
+  // from below): its 1 m width now runs along +Z; centre, area and facing kept.
+  ASSERT_EQ(rig.area_lights.size(), 1u);
+  const AreaLight& area = rig.area_lights[0];
+  EXPECT_NEAR((area.edge_u - Eigen::Vector3f(0, 0, 1)).norm(), 0.f, 1e-6f);
+  EXPECT_NEAR((area.normal() - Eigen::Vector3f(0, -1, 0)).norm(), 0.f, 1e-6f);
+  EXPECT_NEAR((area.centre() - Eigen::Vector3f(0, 3, 0)).norm(), 0.f, 1e-6f);
+  EXPECT_NEAR(area.area(), 2.f, 1e-6f);
+  EXPECT_FALSE(area.visible_to_camera);
+  // Spheres: the plain one, then the spot of radius 0.05 (a sphere with a cone).
+  ASSERT_EQ(rig.sphere_lights.size(), 2u);
+  EXPECT_TRUE(rig.sphere_lights[0].visible_to_camera);
+  EXPECT_FALSE(rig.sphere_lights[0].spot);
+  const SphereLight& spot = rig.sphere_lights[1];
+  ASSERT_TRUE(spot.spot);
+  EXPECT_FLOAT_EQ(spot.radius, 0.05f);
+  EXPECT_EQ(spot.radiance, Eigen::Vector3f(40, 30, 20));
+  EXPECT_NEAR((spot.spot->direction - Eigen::Vector3f(0, -1, 0)).norm(), 0.f, 1e-6f);
+  EXPECT_NEAR(spot.spot->half_angle, std::numbers::pi / 6, 1e-12);
+  EXPECT_DOUBLE_EQ(spot.spot->blend, 0.25);
+  EXPECT_FALSE(spot.visible_to_camera);
+  ASSERT_EQ(rig.suns.size(), 1u);
+  EXPECT_FALSE(rig.suns[0].visible_to_camera);
+  ASSERT_EQ(rig.disc_lights.size(), 1u);
+  EXPECT_NEAR((rig.disc_lights[0].centre - Eigen::Vector3f(0, 2.5f, 0.5f)).norm(), 0.f, 1e-6f);
+  EXPECT_FLOAT_EQ(rig.disc_lights[0].radius, 0.3f);
+  EXPECT_EQ(rig.disc_lights[0].radiance, Eigen::Vector3f::Constant(4.f));
+  EXPECT_TRUE(rig.disc_lights[0].visible_to_camera);
+  // Points: the spot of radius 0 (intensity in W/sr, a hemisphere; blend defaults to Blender's 0.15), then the point.
+  ASSERT_EQ(rig.point_lights.size(), 2u);
+  ASSERT_TRUE(rig.point_lights[0].spot);
+  EXPECT_NEAR(rig.point_lights[0].spot->half_angle, std::numbers::pi / 2, 1e-12);
+  EXPECT_DOUBLE_EQ(rig.point_lights[0].spot->blend, 0.15);
+  EXPECT_EQ(rig.point_lights[0].intensity, Eigen::Vector3f::Constant(7.f));
+  EXPECT_FALSE(rig.point_lights[1].spot);
+  EXPECT_EQ(rig.point_lights[1].intensity, Eigen::Vector3f(1, 2, 3));
+  ASSERT_TRUE(rig.environment);
+  EXPECT_FALSE(rig.environment->visible_to_camera());
+  EXPECT_EQ(rig.count(), 1 + 2 + 1 + 1 + 2 + 1);
+  const auto built = build_scene(file);
+  RenderSettings settings;
+  settings.samples_per_pixel = 4;
+  const cv::Mat image = render_image(*built, file.camera, file.lights, settings);
+  EXPECT_TRUE(cv::checkRange(image));
+  EXPECT_GT(cv::mean(image)[0], 0.0);
+}
+
 struct BrokenCase {
   std::string name;
   std::function<void(json&)> edit;
@@ -197,7 +275,42 @@ TEST(SceneFile, BrokenFilesNameTheFieldAndTheFile) {
          {"lights[2].intensity", "missing"}},
       BrokenCase{"wide_sun", [](json& s) { s["lights"][2]["angle_deg"] = 60; }, {"lights[2].angle_deg"}},
       BrokenCase{"missing_ibl_file", [](json& s) { s["lights"].push_back({{"type", "ibl"}, {"file", "sky.exr"}}); },
-         {"lights[3].file", "no such file"}}};
+         {"lights[3].file", "no such file"}},
+      BrokenCase{"zero_sphere", [](json& s) { s["lights"][1]["radius"] = 0; }, {"lights[1].radius", "type point"}},
+      BrokenCase{"tiny_sphere", [](json& s) { s["lights"][1]["radius"] = 1e-8; }, {"lights[1].radius", "at least"}},
+      BrokenCase{"rotation_string", [](json& s) { s["lights"][0]["rotation_deg"] = "30"; },
+         {"lights[0].rotation_deg", "expected a number"}},
+      BrokenCase{"rotation_huge", [](json& s) { s["lights"][0]["rotation_deg"] = 400; },
+         {"lights[0].rotation_deg", "outside"}},
+      BrokenCase{"visible_not_bool", [](json& s) { s["lights"][2]["visible_to_camera"] = 1; },
+         {"lights[2].visible_to_camera", "true or false"}},
+      BrokenCase{"spot_negative_radius", [](json& s) { s["lights"].push_back(spot()); s["lights"][3]["radius"] = -0.1; },
+         {"lights[3].radius", "outside"}},
+      BrokenCase{"spot_cone_too_wide", [](json& s) { s["lights"].push_back(spot()); s["lights"][3]["cone_angle_deg"] = 181; },
+         {"lights[3].cone_angle_deg", "outside [0, 180]"}},
+      BrokenCase{"spot_cone_negative", [](json& s) { s["lights"].push_back(spot()); s["lights"][3]["cone_angle_deg"] = -1; },
+         {"lights[3].cone_angle_deg", "outside"}},
+      BrokenCase{"spot_cone_nan",  // JSON has no NaN: it is written as null
+         [](json& s) { s["lights"].push_back(spot()); s["lights"][3]["cone_angle_deg"] = std::nan(""); },
+         {"lights[3].cone_angle_deg", "expected a number"}},
+      BrokenCase{"spot_blend", [](json& s) { s["lights"].push_back(spot()); s["lights"][3]["blend"] = 1.5; },
+         {"lights[3].blend", "outside [0, 1]"}},
+      BrokenCase{"spot_typo", [](json& s) { s["lights"].push_back(spot()); s["lights"][3]["spot_size"] = 45; },
+         {"lights[3].spot_size", "unknown field"}},
+      BrokenCase{"spot_no_cone", [](json& s) { s["lights"].push_back(spot()); s["lights"][3].erase("cone_angle_deg"); },
+         {"lights[3].cone_angle_deg", "missing"}},
+      BrokenCase{"spot_zero_direction", [](json& s) { s["lights"].push_back(spot()); s["lights"][3]["direction"] = {0, 0, 0}; },
+         {"lights[3].direction", "zero"}},
+      BrokenCase{"point_radius",
+         [](json& s) { s["lights"].push_back({{"type", "point"}, {"position", {0, 1, 0}}, {"intensity", 1}, {"radius", 0.1}}); },
+         {"lights[3].radius", "unknown field"}},
+      BrokenCase{"point_infinite", [](json& s) {
+                   s["lights"].push_back({{"type", "point"}, {"position", {0, 1, 0}}, {"intensity", 1e300 * 1e300}}); },
+         {"lights[3].intensity"}},
+      BrokenCase{"disc_negative_radius", [](json& s) { s["lights"].push_back(disc()); s["lights"][3]["radius"] = -1; },
+         {"lights[3].radius", "outside"}},
+      BrokenCase{"disc_no_normal", [](json& s) { s["lights"].push_back(disc()); s["lights"][3].erase("normal"); },
+         {"lights[3].normal", "missing"}}};
   for (const BrokenCase& c : cases) {
     SCOPED_TRACE(c.name);
     json scene = valid_scene();

@@ -1,16 +1,20 @@
 // Light sources: one-sided area quads (sources seen in the photo, ceiling
-// panels), spheres (bulbs), suns (distant discs) and an environment map
-// (light from outside the frame).
+// panels) and discs, spheres (bulbs, optionally spots), points (optionally
+// spots), suns (distant discs) and an environment map (light from outside
+// the frame).
 //
-// Units: linear RGB, relative to the photo's exposure. Area and sphere lights
-// and the environment give radiance (W/sr/m^2); a sun gives the irradiance
-// (W/m^2) it delivers to a surface facing it, whatever its angular size.
+// Units: linear RGB, relative to the photo's exposure. Area, disc and sphere
+// lights and the environment give radiance (W/sr/m^2); a point light gives
+// intensity (W/sr); a sun gives the irradiance (W/m^2) it delivers to a
+// surface facing it, whatever its angular size.
 //
 // Lights are not geometry: they cast no shadows and rays pass through them.
 // The path tracer samples each one toward every shading point (next-event
 // estimation) and also counts it when a BSDF-sampled ray meets it, weighting
-// the two with the power heuristic; the camera sees them directly.
-// A light with no area, no radius or no power emits nothing and is skipped.
+// the two with the power heuristic; the camera sees them directly unless
+// `visible_to_camera` is false. A point light is a delta light: sampled only,
+// never met. A light with no area, no radius or no power emits nothing and
+// is skipped.
 #pragma once
 
 #include <Eigen/Core>
@@ -19,6 +23,7 @@
 #include <limits>
 #include <memory>
 #include <numbers>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -30,13 +35,20 @@ struct LightSample {
   float distance = 0.f;  // to the sampled point on the light; infinity for the sun and the environment
   Eigen::Vector3f radiance = Eigen::Vector3f::Zero();  // arriving along -direction
   float pdf = 0.f;  // solid-angle density of `direction`; 0: no sample (nothing arrives)
+  // A delta light (a point): `radiance` is the irradiance I/d^2 arriving on a
+  // surface facing it and `pdf` is 1, so radiance * cos / pdf stays the
+  // arriving irradiance; MIS treats its density as infinite (weight 1).
+  bool delta = false;
 };
 
 // Below this area (m^2) a quad's normal and its pdf dist^2 / (cos * area) are
 // numerically meaningless; such a light emits nothing.
 constexpr float kMinAreaLightArea = 1e-10f;
-// Below this radius (m) a sphere light emits nothing (its pdf 1 / solid angle overflows).
+// Below this radius (m) a sphere light emits nothing (its pdf 1 / solid angle
+// overflows): a light without size is a PointLight.
 constexpr float kMinSphereLightRadius = 1e-6f;
+// Below this radius (m) a disc light emits nothing (its area is under kMinAreaLightArea).
+constexpr float kMinDiscLightRadius = 1e-5f;
 // The Sun's angular radius seen from the Earth, in degrees.
 constexpr double kSunAngularRadiusDeg = 0.265;
 // Sun cones are clamped to [kMinSunAngularRadius, kMaxSunAngularRadius]
@@ -54,6 +66,9 @@ struct AreaLight {
   Eigen::Vector3f edge_u = Eigen::Vector3f::UnitX();
   Eigen::Vector3f edge_v = Eigen::Vector3f::UnitZ();
   Eigen::Vector3f radiance = Eigen::Vector3f::Ones();
+  // False: camera rays do not see it (it still lights the scene and shows in
+  // reflections), as Cycles' camera ray visibility.
+  bool visible_to_camera = true;
 
   Eigen::Vector3f normal() const { return edge_u.cross(edge_v).normalized(); }
   float area() const { return edge_u.cross(edge_v).norm(); }
@@ -66,20 +81,74 @@ struct AreaLight {
   bool intersect(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction, float& t, float& pdf) const;
 };
 
+// One-sided disc of uniform radiance, emitting on the side of `normal`;
+// sampled uniformly by area (pdf d^2 / (cos A), the same from intersect()).
+struct DiscLight {
+  Eigen::Vector3f centre = Eigen::Vector3f::Zero();
+  Eigen::Vector3f normal = -Eigen::Vector3f::UnitY();  // emitting side (normalised on use)
+  float radius = 0.1f;
+  Eigen::Vector3f radiance = Eigen::Vector3f::Ones();
+  bool visible_to_camera = true;
+
+  double area() const;
+  bool emits() const;
+  LightSample sample(const Eigen::Vector3f& from, float u1, float u2) const;
+  bool intersect(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction, float& t, float& pdf) const;
+};
+
+// The cone of a spot light, as Blender Cycles 3.4 shapes it: along a unit
+// direction w leaving the light at angle theta from the axis the light is
+// scaled by cos(theta) * smoothstep((cos theta - cos h) / ((1 - cos h) blend))
+// for theta < h (the half-angle; the smoothstep only where its argument is
+// below 1), and 0 outside. Blender's spot_size is the full angle 2h and
+// spot_blend is `blend`. The cos(theta) factor is Cycles 3.4's too.
+struct SpotCone {
+  Eigen::Vector3f direction = -Eigen::Vector3f::UnitY();  // the way the light shines (normalised on use)
+  double half_angle = std::numbers::pi / 8;  // radians, [0, pi/2]: 0 emits nothing, pi/2 is a hemisphere
+  double blend = 0.15;                        // [0, 1]: 0 a hard edge, 1 soft from the axis out
+
+  // The scale along w (from the light outward; need not be unit); 0 for a
+  // degenerate cone or direction.
+  double attenuation(const Eigen::Vector3d& w) const;
+  // The same for the cosine of the angle from the axis.
+  double attenuation_at_cos(double cos_theta) const;
+  bool valid() const;  // a finite axis, finite angle and blend
+};
+
 // A sphere of uniform radiance emitting outward. From outside it is sampled
 // uniformly within the cone of directions it subtends; points inside receive
-// nothing from it.
+// nothing from it. With a `spot` cone, a point p receives the radiance scaled
+// by the cone's attenuation along centre -> p (the same for every ray from p,
+// so sample() and intersect() agree).
 struct SphereLight {
   Eigen::Vector3f center = Eigen::Vector3f::Zero();
   float radius = 0.1f;
   Eigen::Vector3f radiance = Eigen::Vector3f::Ones();
+  std::optional<SpotCone> spot;
+  bool visible_to_camera = true;
   // A prop's own lamp (props.h prop_lights): it shines only in the world with
   // props, so differential rendering adds its light to the photo.
   bool prop_only = false;
 
   bool emits() const;
+  // The radiance reaching `point` from the sphere (its spot cone applied).
+  Eigen::Vector3f radiance_toward(const Eigen::Vector3f& point) const;
   LightSample sample(const Eigen::Vector3f& from, float u1, float u2) const;
   bool intersect(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction, float& t, float& pdf) const;
+};
+
+// A point of `intensity` I (W/sr): a surface at distance d, at angle theta
+// to it, receives I cos(theta) / d^2 (times the spot cone's attenuation).
+// A delta light: light sampling only (LightSample::delta); no ray meets it
+// and the camera never sees it. Points nearer than 1e-6 m receive nothing.
+struct PointLight {
+  Eigen::Vector3f position = Eigen::Vector3f::Zero();
+  Eigen::Vector3f intensity = Eigen::Vector3f::Ones();
+  std::optional<SpotCone> spot;
+
+  bool emits() const;
+  // The two numbers are unused (the signature of the other lights).
+  LightSample sample(const Eigen::Vector3f& from, float u1 = 0.f, float u2 = 0.f) const;
 };
 
 // A distant disc of uniform radiance: all directions within `angular_radius`
@@ -90,6 +159,7 @@ struct SunLight {
   Eigen::Vector3f direction = Eigen::Vector3f::UnitY();  // toward the sun (normalised on use)
   double angular_radius = kSunAngularRadiusDeg * std::numbers::pi / 180.0;  // radians
   Eigen::Vector3f irradiance = Eigen::Vector3f::Ones();  // W/m^2 normal to `direction`
+  bool visible_to_camera = true;
 
   bool emits() const;
   Eigen::Vector3f radiance() const;
@@ -114,6 +184,9 @@ class EnvironmentLight {
   const cv::Mat& image() const { return image_; }
   Eigen::Vector3f scale() const { return scale_; }
   void set_scale(const Eigen::Vector3f& scale) { scale_ = scale; }
+  // False: camera rays that escape see black; it still lights the scene.
+  bool visible_to_camera() const { return visible_to_camera_; }
+  void set_visible_to_camera(bool visible) { visible_to_camera_ = visible; }
 
   // 0 for a non-finite direction.
   Eigen::Vector3f radiance(const Eigen::Vector3f& direction) const;
@@ -131,20 +204,30 @@ class EnvironmentLight {
   std::vector<float> conditional_cdf_;  // per row over columns, rows*(cols+1)
   std::vector<float> row_weight_;
   float total_weight_ = 0.f;
+  bool visible_to_camera_ = true;
 };
 
 // Every light of a scene. Lights are indexed in this order: area lights,
-// sphere lights, suns, then the environment (if any); count() and only()
-// follow it.
+// sphere lights (spots among them), suns, disc lights, point lights (spots
+// among them), then the environment (if any); count(), only(), the path
+// tracer's per-light layers (relight.h, render_background_light_images) and
+// its per-bounce sampler dimensions follow it. Discs and points come after
+// the suns so that a rig without them keeps the indices it always had.
 struct LightRig {
   std::vector<AreaLight> area_lights;
   std::vector<SphereLight> sphere_lights;
   std::vector<SunLight> suns;
+  std::vector<DiscLight> disc_lights;
+  std::vector<PointLight> point_lights;
   std::shared_ptr<EnvironmentLight> environment;  // may be null
 
-  int count() const {
-    return static_cast<int>(area_lights.size() + sphere_lights.size() + suns.size()) + (environment ? 1 : 0);
-  }
+  // Index of the first light of each kind.
+  int first_sphere() const { return static_cast<int>(area_lights.size()); }
+  int first_sun() const { return first_sphere() + static_cast<int>(sphere_lights.size()); }
+  int first_disc() const { return first_sun() + static_cast<int>(suns.size()); }
+  int first_point() const { return first_disc() + static_cast<int>(disc_lights.size()); }
+  int environment_index() const { return first_point() + static_cast<int>(point_lights.size()); }
+  int count() const { return environment_index() + (environment ? 1 : 0); }
   // A rig holding only light `index`; throws std::out_of_range.
   LightRig only(int index) const;
 };

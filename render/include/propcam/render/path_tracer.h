@@ -1,6 +1,7 @@
 // CPU path tracer on Embree: next-event estimation to every light (area,
-// sphere, sun, environment), MIS (power heuristic) between light and BSDF
-// sampling for all of them, Russian roulette, and the one-pass differential
+// disc, sphere and spot, point, sun, environment), MIS (power heuristic)
+// between light and BSDF sampling for all of them (a point light is a delta:
+// light sampling only), Russian roulette, and the one-pass differential
 // render (I_obj and I_noobj from shared random numbers). Lights and materials:
 // lights.h, mesh.h, render/README.md.
 #pragma once

@@ -38,7 +38,8 @@ struct PropReach {
   std::vector<bool> light_significant;
   bool environment_has_sun = false;  // directional shadows from a peak in the environment
   int pixels_in_environment_sun_shadow = 0;
-  int pixels_in_sphere_or_sun_shadow = 0;  // sphere lights and suns (all treated as casting shadows)
+  // sphere, spot, point and disc lights and suns (all treated as casting shadows)
+  int pixels_in_sphere_or_sun_shadow = 0;
   double seconds = 0.0;
 };
 
