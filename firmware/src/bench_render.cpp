@@ -115,8 +115,8 @@ json bench_size(const RenderBenchOptions& o, const render::Mesh& prop, double pr
                                 session_settings(o, kSessionSeed, o.max_spp));
   double elapsed = seconds_since(session_start);  // culling and tiles so far
   double tracing = 0.0, first_snapshot = 0.0;
-  std::optional<double> time_to_target;
-  std::optional<int> spp_to_target;
+  std::optional<double> time_to_target, time_to_target_denoised;
+  std::optional<int> spp_to_target, spp_to_target_denoised;
   json curve = json::array();
   while (true) {
     const auto pass_start = Clock::now();
@@ -125,19 +125,30 @@ json bench_size(const RenderBenchOptions& o, const render::Mesh& prop, double pr
     elapsed += pass_seconds;
     tracing += pass_seconds;
     if (curve.empty()) first_snapshot = elapsed;
-    // Not timed: the error of this snapshot.
+    // Not timed: the error of this snapshot, raw and denoised (the filter's
+    // own time is reported, and counted only in the denoised time to 1%).
     const double rmse = rmse_in_mask(session.composite(), reference, region);
+    render::DenoiseReport denoise;
+    const render::DifferentialRender denoised = session.denoised(&denoise);
+    const double rmse_denoised = rmse_in_mask(render::composite_differential(photo, denoised), reference, region);
     curve.push_back({{"pass", pass.pass},
                      {"spp", pass.max_samples},
                      {"seconds", elapsed},
                      {"rmse", rmse},
-                     {"rmse_rel", rmse / region_luminance}});
-    if (rmse / region_luminance < kRenderBenchTargetRelativeRmse) {
+                     {"rmse_rel", rmse / region_luminance},
+                     {"rmse_rel_denoised", rmse_denoised / region_luminance},
+                     {"denoise_seconds", denoise.seconds},
+                     {"denoise_tiles_filtered", denoise.tiles_filtered},
+                     {"denoise_tiles_judged", denoise.tiles_judged}});
+    if (!time_to_target && rmse / region_luminance < kRenderBenchTargetRelativeRmse) {
       time_to_target = elapsed;
       spp_to_target = pass.max_samples;
-      break;
     }
-    if (session.finished()) break;
+    if (!time_to_target_denoised && rmse_denoised / region_luminance < kRenderBenchTargetRelativeRmse) {
+      time_to_target_denoised = elapsed + denoise.seconds;
+      spp_to_target_denoised = pass.max_samples;
+    }
+    if ((time_to_target && time_to_target_denoised) || session.finished()) break;
   }
   const render::RenderStats stats = session.stats();
   const double rays_per_s = tracing > 0 ? static_cast<double>(stats.rays) / tracing : 0.0;
@@ -164,6 +175,8 @@ json bench_size(const RenderBenchOptions& o, const render::Mesh& prop, double pr
           {"first_snapshot_s", first_snapshot},
           {"time_to_1pct_s", null_or(time_to_target)},
           {"spp_to_1pct", null_or(spp_to_target)},
+          {"time_to_1pct_denoised_s", null_or(time_to_target_denoised)},
+          {"spp_to_1pct_denoised", null_or(spp_to_target_denoised)},
           {"rays_per_s", rays_per_s},
           {"embree_raw_rays_per_s", raw.rays_per_s()},
           {"scene_intersect_rays_per_s", wrapped.rays_per_s()},
@@ -269,30 +282,36 @@ std::string format_render_bench(const json& r) {
                 static_cast<unsigned long long>(r["seed"].get<uint64_t>()), r["threads"].get<int>(),
                 100.0 * r["target_rmse_rel"].get<double>());
   out << line
-      << "  size       build_s  snapshot_s  Mrays/s  raw_Mrays/s  scene_Mrays/s  efficiency  to_1%_s  spp  ref_noise\n";
+      << "  size       build_s  snapshot_s  Mrays/s  raw_Mrays/s  scene_Mrays/s  efficiency  to_1%_s  spp  denoised_1%_s  spp  ref_noise\n";
   for (const auto& s : r["sizes"]) {
-    char to_target[32] = "    -", spp[16] = "   -";
+    char to_target[32] = "    -", spp[16] = "   -", to_target_dn[32] = "    -", spp_dn[16] = "   -";
     if (!s["time_to_1pct_s"].is_null()) {
       std::snprintf(to_target, sizeof to_target, "%7.2f", s["time_to_1pct_s"].get<double>());
       std::snprintf(spp, sizeof spp, "%4d", s["spp_to_1pct"].get<int>());
     }
+    if (!s["time_to_1pct_denoised_s"].is_null()) {
+      std::snprintf(to_target_dn, sizeof to_target_dn, "%7.2f", s["time_to_1pct_denoised_s"].get<double>());
+      std::snprintf(spp_dn, sizeof spp_dn, "%4d", s["spp_to_1pct_denoised"].get<int>());
+    }
     const std::string size = std::to_string(s["width"].get<int>()) + "x" + std::to_string(s["height"].get<int>());
-    std::snprintf(line, sizeof line, "  %-10s %7.3f  %10.3f  %7.2f  %11.2f  %13.2f  %9.1f%%  %7s  %4s  %8.2f%%\n",
+    std::snprintf(line, sizeof line, "  %-10s %7.3f  %10.3f  %7.2f  %11.2f  %13.2f  %9.1f%%  %7s  %4s  %13s  %4s  %8.2f%%\n",
                   size.c_str(), s["scene_build_s"].get<double>(), s["first_snapshot_s"].get<double>(),
                   s["rays_per_s"].get<double>() / 1e6, s["embree_raw_rays_per_s"].get<double>() / 1e6,
                   s["scene_intersect_rays_per_s"].get<double>() / 1e6, 100.0 * s["efficiency"].get<double>(),
-                  to_target, spp, 100.0 * s["reference"]["noise_rel"].get<double>());
+                  to_target, spp, to_target_dn, spp_dn, 100.0 * s["reference"]["noise_rel"].get<double>());
     out << line;
   }
   for (const auto& s : r["sizes"]) {
     std::snprintf(line, sizeof line,
-                  "\n%dx%d: error vs time (%d px region, reference %d spp in %.1f s)\n   spp   seconds   rmse%%\n",
+                  "\n%dx%d: error vs time (%d px region, reference %d spp in %.1f s)\n"
+                  "   spp   seconds   rmse%%  denoised%%  denoise_s\n",
                   s["width"].get<int>(), s["height"].get<int>(), s["reference"]["region_pixels"].get<int>(),
                   s["reference"]["spp"].get<int>(), s["reference"]["seconds"].get<double>());
     out << line;
     for (const auto& p : s["curve"]) {
-      std::snprintf(line, sizeof line, "  %4d  %8.3f  %6.2f\n", p["spp"].get<int>(), p["seconds"].get<double>(),
-                    100.0 * p["rmse_rel"].get<double>());
+      std::snprintf(line, sizeof line, "  %4d  %8.3f  %6.2f  %6.2f  %6.3f\n", p["spp"].get<int>(),
+                    p["seconds"].get<double>(), 100.0 * p["rmse_rel"].get<double>(),
+                    100.0 * p["rmse_rel_denoised"].get<double>(), p["denoise_seconds"].get<double>());
       out << line;
     }
   }
@@ -312,12 +331,14 @@ void plot_render_bench(const json& r, const std::string& dir) {
     const fs::path dat = d / ("render_" + size + ".dat");
     {
       std::ofstream out(dat);
-      out << "# spp seconds rmse_rel\n";
-      for (const auto& p : s["curve"]) out << p["spp"] << " " << p["seconds"] << " " << p["rmse_rel"] << "\n";
+      out << "# spp seconds rmse_rel rmse_rel_denoised\n";
+      for (const auto& p : s["curve"])
+        out << p["spp"] << " " << p["seconds"] << " " << p["rmse_rel"] << " " << p["rmse_rel_denoised"] << "\n";
     }
     gp << "set output '" << (d / ("render_" + size + ".png")).string() << "'\n"
        << "set title 'Differential render " << size << ": error vs time (labels: samples per pixel)'\n"
        << "plot '" << dat.string() << "' using 2:3 with linespoints pt 7 title 'session', "
+       << "'' using 2:4 with linespoints pt 5 title 'session, denoised', "
        << "'' using 2:3:1 with labels offset 1,1 notitle, "
        << r["target_rmse_rel"].get<double>() << " with lines dt 2 title 'target'\n";
   }

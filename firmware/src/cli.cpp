@@ -170,7 +170,7 @@ struct CompositeArgs {
   LensPrior lens;
   int spp = 16, bounces = kDefaultCliBounces;
   uint64_t seed = 0x5eed;
-  bool json_out = false, explain = false, no_cull = false;
+  bool json_out = false, explain = false, no_cull = false, no_denoise = false;
   double aperture = 0, focus = 0;
   std::string light_scale;  // "I=S,I=S": relight after rendering
   bool relight_scene = false;
@@ -275,6 +275,7 @@ int cmd_composite(const CompositeArgs& a) {
   CompositeOptions options;
   options.cull_tiles = !a.no_cull;
   options.plan.allow_skips = !a.no_cull;
+  options.denoise = !a.no_denoise;
   options.light_layers = !a.light_scale.empty();
   options.scene_layers_width = a.relight_scene && !a.light_scale.empty() ? kSceneLayerWidth : 0;
   // Light is added in the photo's own linear space: its camera response
@@ -310,6 +311,10 @@ int cmd_composite(const CompositeArgs& a) {
                   {"samples_per_pixel", a.spp},
                   {"rays", st.rays},
                   {"samples_untouched_by_prop", skipped},
+                  {"denoise", {{"on", !a.no_denoise},
+                               {"tiles_judged", result.denoise.tiles_judged},
+                               {"tiles_filtered", result.denoise.tiles_filtered},
+                               {"seconds", result.denoise.seconds}}},
                   {"plan", plan},
                   {"insertion_constraint", {{"applied", result.flattening.applied},
                                             {"plane_height_m", result.flattening.plane_height_m},
@@ -597,6 +602,7 @@ int run_cli(int argc, char** argv) {
   composite->add_option("--focus", comp.focus, "Depth of field: focus distance in metres (default: the prop)")
       ->check(CLI::PositiveNumber);
   composite->add_flag("--no-cull", comp.no_cull, "Simulate everything: every tile, light and path (to measure what the plan saves)");
+  composite->add_flag("--no-denoise", comp.no_denoise, "Keep the raw Monte Carlo change (no edge-aware filter of the prop's change)");
 
   PropsArgs props_args;
   auto* props = app.add_subcommand("props", "List the preset props (and render their thumbnails)");

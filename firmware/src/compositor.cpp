@@ -135,14 +135,15 @@ CompositeResult composite_prop(const cv::Mat& photo_linear, const inference::Sce
   for (const render::SphereLight& l : lights.sphere_lights) prop_emits = prop_emits || l.prop_only;
   session_settings.cull_tiles = options.cull_tiles && !prop_emits;
   session_settings.target_relative_error = options.target_relative_error;
+  session_settings.denoise = options.denoise;
   render::RenderSession session(world, camera, result.plan.lights, photo_linear, w.prop_bounds, session_settings);
   while (!session.finished()) {
     result.passes.push_back(session.run_pass());
     if (settings.progress) settings.progress(static_cast<double>(result.passes.back().max_samples) / settings.samples_per_pixel);
     if (options.on_pass) options.on_pass(session, result.passes.back());
   }
-  result.render = session.differential();
-  result.composite_linear = session.composite();
+  result.render = options.denoise ? session.denoised(&result.denoise) : session.differential();
+  result.composite_linear = render::composite_differential(photo_linear, result.render);
   result.tiles = session.tiles();
   result.reach = session.reach();
   if (session_settings.render.light_layers)

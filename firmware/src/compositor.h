@@ -68,13 +68,17 @@ struct CompositeOptions {
   double target_relative_error = 0.0;   // stop tiles early at this error (0: run to --spp)
   bool light_layers = false;            // keep the change split by light (relighting)
   int scene_layers_width = 0;           // > 0: also per-light renders of the empty scene this wide
+  // Filter the prop's change where the half buffers say it lowers the error
+  // (render/denoise.h); per-light layers stay unfiltered.
+  bool denoise = true;
   // Called after each progressive pass with the session (snapshot, tiles, errors).
   std::function<void(const render::RenderSession&, const render::PassReport&)> on_pass;
 };
 
 struct CompositeResult {
   cv::Mat composite_linear;  // CV_32FC3
-  render::DifferentialRender render;
+  render::DifferentialRender render;     // denoised where it helped, with options.denoise
+  render::DenoiseReport denoise;
   render::PlacedProp placed;
   double scene_build_seconds = 0.0;
   std::vector<render::PassReport> passes;

@@ -442,7 +442,10 @@ cv::Mat render_background_image(const Scene& scene, const PinholeCamera& camera,
   return render_world(scene, camera, lights, settings, stats, false);
 }
 
-PrimaryBuffers render_primary_buffers(const Scene& scene, const PinholeCamera& camera, bool with_props) {
+PrimaryBuffers render_primary_buffers(const Scene& scene, const PinholeCamera& camera, bool with_props,
+                                      const cv::Mat& only_where) {
+  if (!only_where.empty() && (only_where.type() != CV_8U || only_where.cols != camera.width || only_where.rows != camera.height))
+    throw std::invalid_argument("render_primary_buffers: only_where must be CV_8U at the camera's size");
   PrimaryBuffers out;
   out.depth = cv::Mat(camera.height, camera.width, CV_32F, cv::Scalar(0));
   out.albedo = cv::Mat(camera.height, camera.width, CV_32FC3, cv::Scalar::all(0));
@@ -452,6 +455,7 @@ PrimaryBuffers render_primary_buffers(const Scene& scene, const PinholeCamera& c
   const Eigen::Vector3f origin = camera.center_world.cast<float>();
   for (int y = 0; y < camera.height; ++y)
     for (int x = 0; x < camera.width; ++x) {
+      if (!only_where.empty() && !only_where.at<uint8_t>(y, x)) continue;
       const Eigen::Vector3f dir = camera.ray_direction(x, y).cast<float>();
       RayHit hit;
       if (!scene.intersect(origin, dir, kInfinity, with_props, hit)) continue;
@@ -500,6 +504,7 @@ void differential_sample(const PathIntegrator& integrator, const PinholeCamera& 
     return;
   }
   pixel.change_sum += delta;
+  if (sample & 1) pixel.change_sum_odd += delta;
   const double lum = 0.2126 * delta.x() + 0.7152 * delta.y() + 0.0722 * delta.z();
   pixel.change_luminance_sq_sum += lum * lum;
 }

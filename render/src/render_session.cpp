@@ -170,7 +170,93 @@ LightLayers RenderSession::light_layers() const {
   return out;
 }
 
-cv::Mat RenderSession::composite() const { return composite_differential(photo_, differential()); }
+namespace {
+
+// The means of a session's pixels over all samples, the odd and the even
+// ones, the variance of the full mean's luminance, and which pixels the prop changed.
+struct SessionBuffers {
+  ChangeBuffer full;
+  cv::Mat odd, even, touched;
+};
+
+SessionBuffers session_buffers(const std::vector<DifferentialPixel>& pixels, int width, int height) {
+  SessionBuffers b;
+  b.full.change = cv::Mat(height, width, CV_32FC3, cv::Scalar::all(0));
+  b.full.variance = cv::Mat(height, width, CV_32F, cv::Scalar(0));
+  b.odd = cv::Mat(height, width, CV_32FC3, cv::Scalar::all(0));
+  b.even = cv::Mat(height, width, CV_32FC3, cv::Scalar::all(0));
+  b.touched = cv::Mat(height, width, CV_8U, cv::Scalar(0));
+  for (int y = 0; y < height; ++y)
+    for (int x = 0; x < width; ++x) {
+      const DifferentialPixel& p = pixels[static_cast<size_t>(y) * width + x];
+      if (p.samples == 0) continue;
+      const auto to_vec = [](const Eigen::Vector3f& v) { return cv::Vec3f(v.x(), v.y(), v.z()); };
+      const int odd = p.samples / 2, even = p.samples - odd;
+      b.full.change.at<cv::Vec3f>(y, x) = to_vec(p.change_sum) / static_cast<float>(p.samples);
+      if (odd > 0) b.odd.at<cv::Vec3f>(y, x) = to_vec(p.change_sum_odd) / static_cast<float>(odd);
+      b.even.at<cv::Vec3f>(y, x) = to_vec(p.change_sum - p.change_sum_odd) / static_cast<float>(even);
+      const double n = p.samples;
+      const Eigen::Vector3f& s = p.change_sum;
+      const double mean = (0.2126 * s.x() + 0.7152 * s.y() + 0.0722 * s.z()) / n;
+      const double variance = std::max(0.0, p.change_luminance_sq_sum / n - mean * mean);
+      b.full.variance.at<float>(y, x) = static_cast<float>(n > 1 ? variance / (n - 1) : variance);
+      b.touched.at<uint8_t>(y, x) = p.untouched < p.samples ? 255 : 0;
+    }
+  return b;
+}
+
+}  // namespace
+
+DifferentialRender RenderSession::denoised(DenoiseReport* report) const {
+  const auto start = Clock::now();
+  DifferentialRender out = differential();
+  const SessionBuffers b = session_buffers(pixels_, camera_.width, camera_.height);
+  std::vector<cv::Rect> judged;
+  for (const TileStatus& t : tiles_)
+    if (t.affected && t.samples >= 2 && t.samples <= settings_.denoise_options.max_samples &&
+        cv::countNonZero(b.touched(t.rect)) > 0)
+      judged.push_back(t.rect);
+  DenoiseReport r;
+  r.tiles_judged = static_cast<int>(judged.size());
+  if (!judged.empty()) {
+    DenoiseGuides guides;
+    {
+      std::lock_guard lock(guides_mutex_);
+      if (guides_.albedo.empty()) {
+        const PrimaryBuffers primary = render_primary_buffers(scene_, camera_, true, reach_.affected);
+        guides_ = {primary.albedo, primary.normal, primary.depth, primary.prop_coverage};
+      }
+      guides = guides_;
+    }
+    // The odd half has about half the samples: twice the variance of the full mean.
+    const ChangeBuffer odd{b.odd, b.full.variance * 2.0};
+    const cv::Mat odd_filtered = denoise_change(odd, b.touched, out.coverage, guides, settings_.denoise_options);
+    const std::vector<bool> helps = filter_helps_per_tile(b.odd, odd_filtered, b.even, b.touched, judged);
+    const cv::Mat filtered = denoise_change(b.full, b.touched, out.coverage, guides, settings_.denoise_options);
+    for (size_t i = 0; i < judged.size(); ++i)
+      if (helps[i]) {
+        filtered(judged[i]).copyTo(out.change(judged[i]));
+        ++r.tiles_filtered;
+      }
+  }
+  r.seconds = seconds_since(start);
+  if (report) *report = r;
+  return out;
+}
+
+cv::Mat RenderSession::composite() const {
+  return composite_differential(photo_, settings_.denoise ? denoised() : differential());
+}
+
+cv::Mat RenderSession::touched() const {
+  cv::Mat mask(camera_.height, camera_.width, CV_8U, cv::Scalar(0));
+  for (int y = 0; y < camera_.height; ++y)
+    for (int x = 0; x < camera_.width; ++x) {
+      const DifferentialPixel& p = pixels_[static_cast<size_t>(y) * camera_.width + x];
+      if (p.untouched < p.samples) mask.at<uint8_t>(y, x) = 255;
+    }
+  return mask;
+}
 
 cv::Mat RenderSession::tile_error_map() const {
   cv::Mat map(camera_.height, camera_.width, CV_32F, cv::Scalar(0));

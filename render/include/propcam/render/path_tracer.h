@@ -84,7 +84,9 @@ std::vector<cv::Mat> render_background_light_images(const Scene& scene, const Pi
                                                     const LightRig& lights, const RenderSettings& settings,
                                                     RenderStats* stats = nullptr);
 
-PrimaryBuffers render_primary_buffers(const Scene& scene, const PinholeCamera& camera, bool with_props);
+// `only_where` (CV_8U, optional): pixels left at zero where it is zero.
+PrimaryBuffers render_primary_buffers(const Scene& scene, const PinholeCamera& camera, bool with_props,
+                                      const cv::Mat& only_where = cv::Mat());
 
 // The prop's effect on the photo, from one set of shared samples.
 struct DifferentialRender {
@@ -101,6 +103,7 @@ DifferentialRender render_differential(const Scene& scene, const PinholeCamera& 
 // (seed, pixel, s), so any split into passes gives bit-identical sums.
 struct DifferentialPixel {
   Eigen::Vector3f change_sum = Eigen::Vector3f::Zero();  // sum of per-sample changes
+  Eigen::Vector3f change_sum_odd = Eigen::Vector3f::Zero();  // the same over odd sample numbers (denoise.h's halves)
   std::vector<Eigen::Vector3f> change_sum_per_light;     // with light layers: the same, split by light
   double change_luminance_sq_sum = 0.0;                  // for the standard error
   int prop_samples = 0;                                  // samples whose camera ray saw a prop

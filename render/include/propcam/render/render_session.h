@@ -5,8 +5,11 @@
 #pragma once
 
 #include <atomic>
+#include <mutex>
 #include <opencv2/core.hpp>
 #include <vector>
+
+#include "propcam/render/denoise.h"
 
 #include "propcam/render/path_tracer.h"
 #include "propcam/render/prop_reach.h"
@@ -25,6 +28,17 @@ struct SessionSettings {
   int min_samples_to_converge = 8;
   bool cull_tiles = true;           // skip tiles the prop cannot affect
   ReachOptions reach;
+  // composite() filters the prop's change (denoise.h) in the tiles where the
+  // two half buffers say the filter lowers the error.
+  bool denoise = false;
+  DenoiseOptions denoise_options;
+};
+
+// What the last denoised() did.
+struct DenoiseReport {
+  int tiles_judged = 0;    // traced tiles with pixels the prop changed
+  int tiles_filtered = 0;  // of those, where the filter lowered the error
+  double seconds = 0.0;    // guides (once), both filters and the test
 };
 
 struct TileStatus {
@@ -61,11 +75,16 @@ class RenderSession {
   PassReport run_pass(const std::atomic<bool>* cancel = nullptr);
   bool finished() const;
 
-  cv::Mat composite() const;            // CV_32FC3 linear, the photo's size
+  cv::Mat composite() const;            // CV_32FC3 linear, the photo's size (denoised if settings.denoise)
   DifferentialRender differential() const;
+  // The change filtered where it helps (tiles with under 2 or over
+  // denoise_options.max_samples samples stay raw);
+  // `report` (optional) says where and at what cost.
+  DifferentialRender denoised(DenoiseReport* report = nullptr) const;
   // The change split by light (needs settings.render.light_layers); empty otherwise.
   LightLayers light_layers() const;
   cv::Mat tile_error_map() const;       // CV_32F, each pixel its tile's relative error (0 where culled)
+  cv::Mat touched() const;              // CV_8U, 255 where some sample of the pixel the prop changed
   const std::vector<TileStatus>& tiles() const { return tiles_; }
   const PropReach& reach() const { return reach_; }
   RenderStats stats() const;            // rays and samples so far
@@ -82,6 +101,9 @@ class RenderSession {
   PropReach reach_;
   std::vector<TileStatus> tiles_;
   std::vector<DifferentialPixel> pixels_;
+  // The denoiser's guides, traced once on first use (over affected tiles).
+  mutable std::mutex guides_mutex_;
+  mutable DenoiseGuides guides_;
   int passes_ = 0;
   double total_seconds_ = 0.0;
 };
