@@ -405,7 +405,6 @@ CompositeRender::CompositeRender(std::shared_ptr<const Analysis> analysis, const
   settings.render.light_layers = true;
   settings.max_samples_per_pixel = tier.max_samples_per_pixel;
   settings.target_relative_error = tier.target_relative_error;
-  settings.denoise = true;  // snapshots filter the change where the half buffers say it helps
   bool prop_emits = false;
   for (const render::SphereLight& l : world_.lights.sphere_lights) prop_emits = prop_emits || l.prop_only;
   settings.cull_tiles = !prop_emits;  // a lamp's light reaches every tile

@@ -3,6 +3,7 @@ scene reset, Cycles settings, geometry in OUR coordinates (Y up), materials,
 renders read back as numpy arrays (row 0 = top)."""
 import math
 import os
+import sys
 import tempfile
 import time
 
@@ -552,3 +553,16 @@ def load_png_8bit(path):
     img.pixels.foreach_get(a)
     bpy.data.images.remove(img)
     return np.round(a.reshape(h, w, 4)[::-1, :, :3] * 255.0)
+
+
+def run_main(main):
+    """Runs a script's main() so that an exception ends Blender with status 1
+    (Blender itself exits 0 after a failed --python script)."""
+    try:
+        main()
+    except SystemExit:
+        raise
+    except Exception:
+        import traceback
+        traceback.print_exc()
+        sys.exit(1)

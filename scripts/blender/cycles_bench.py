@@ -250,7 +250,7 @@ def bench_scene(name, a, settings_out):
     hidden = SCENES[name](t)
     settings_out.update(match_propcam(a["bounces"]))
     scene_json = t.write_scene_json()
-    # lights seen directly: Cycles 3.4's light visibility and propcam's sample clamp may differ
+    # lights seen directly: scripted Blender lights start hidden from the camera, ours do not
     warnings = ["light point %s is in view (use a 4:3 size)" % (p,) for p in hidden if t.in_view(p)]
     log("scene %s" % name)
     cycles_render(1, CYCLES_SEED, a["bounces"])  # warm-up: scene sync, BVH, kernels
@@ -424,11 +424,4 @@ def main():
 
 
 if __name__ == "__main__":
-    try:
-        main()
-    except SystemExit:
-        raise
-    except Exception:
-        import traceback
-        traceback.print_exc()
-        sys.exit(1)
+    bcommon.run_main(main)
