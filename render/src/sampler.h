@@ -65,6 +65,14 @@ inline uint32_t sobol_dimension1(uint32_t index) {
     if (index & 1u) result ^= v;
   return result;
 }
+// The same with its bits reversed (what a nested scramble works on), built
+// from the reversed direction numbers: v_k = 2^k, then v ^= v << 1.
+inline uint32_t sobol_dimension1_reversed(uint32_t index) {
+  uint32_t result = 0;
+  for (uint32_t v = 1u; index != 0; index >>= 1, v ^= v << 1)
+    if (index & 1u) result ^= v;
+  return result;
+}
 
 // A 32-bit fraction as a float in [0, 1): the top 24 bits, exact in a float.
 inline float fraction_to_unit(uint32_t bits) { return static_cast<float>(bits >> 8) * 0x1p-24f; }
@@ -77,18 +85,24 @@ class SobolSampler {
                                  hash_combine(static_cast<uint32_t>(pixel_key), static_cast<uint32_t>(pixel_key >> 32)))),
         index_(sample_index) {}
 
+  // nested_uniform_scramble(sobol_dimension0(i), s) and the same of
+  // dimension 1, written without the bit reversals that cancel.
   float get1d() {
     const uint32_t key = next_dimension_key();
     const uint32_t shuffled = nested_uniform_scramble(index_, key);
-    return fraction_to_unit(nested_uniform_scramble(sobol_dimension0(shuffled), hash_combine(key, 1u)));
+    return fraction_to_unit(reverse_bits(laine_karras_permutation(shuffled, hash_combine(key, 1u))));
   }
 
   Eigen::Vector2f get2d() {
     const uint32_t key = next_dimension_key();
     const uint32_t shuffled = nested_uniform_scramble(index_, key);
-    return {fraction_to_unit(nested_uniform_scramble(sobol_dimension0(shuffled), hash_combine(key, 1u))),
-            fraction_to_unit(nested_uniform_scramble(sobol_dimension1(shuffled), hash_combine(key, 2u)))};
+    return {fraction_to_unit(reverse_bits(laine_karras_permutation(shuffled, hash_combine(key, 1u)))),
+            fraction_to_unit(
+                reverse_bits(laine_karras_permutation(sobol_dimension1_reversed(shuffled), hash_combine(key, 2u))))};
   }
+
+  // The key of the next draw's dimension (tests rebuild draws from it).
+  uint32_t peek_dimension_key() const { return hash_combine(pixel_seed_, static_cast<uint32_t>(dimension_)); }
 
   // Where the next draw starts; the path tracer gives each bounce a fixed range.
   void set_dimension(int dimension) { dimension_ = dimension; }

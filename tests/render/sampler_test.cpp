@@ -44,6 +44,24 @@ TEST(SobolSampler, DrawsArePureFunctionsOfSeedPixelIndexAndDimension) {
   EXPECT_EQ(c.get2d(), d.get2d());
 }
 
+// The draws equal the textbook composition: the index shuffled by a nested
+// uniform scramble, the Sobol point's coordinates scrambled each by its own seed.
+TEST(SobolSampler, DrawsAreOwenScrambledSobolPoints) {
+  using namespace detail;
+  EXPECT_EQ(sobol_dimension1_reversed(0), 0u);
+  for (uint32_t i = 0; i < 5000; ++i) {
+    ASSERT_EQ(sobol_dimension1_reversed(i * 7919u), reverse_bits(sobol_dimension1(i * 7919u)));
+    SobolSampler s(5, 77, i);
+    s.set_dimension(static_cast<int>(i % 13));
+    const uint32_t key = s.peek_dimension_key();
+    const uint32_t shuffled = nested_uniform_scramble(i, key);
+    const Eigen::Vector2f expected(
+        fraction_to_unit(nested_uniform_scramble(sobol_dimension0(shuffled), hash_combine(key, 1u))),
+        fraction_to_unit(nested_uniform_scramble(sobol_dimension1(shuffled), hash_combine(key, 2u))));
+    ASSERT_EQ(s.get2d(), expected) << i;
+  }
+}
+
 TEST(SobolSampler, EveryDrawIsInTheUnitInterval) {
   for (uint32_t index = 0; index < 4096; ++index) {
     SobolSampler s(0xfeed, index * 7919u, index);
