@@ -210,12 +210,17 @@ SessionBuffers session_buffers(const std::vector<DifferentialPixel>& pixels, int
 DifferentialRender RenderSession::denoised(DenoiseReport* report) const {
   const auto start = Clock::now();
   DifferentialRender out = differential();
+  const auto in_filter_range = [&](const TileStatus& t) {
+    return t.affected && t.samples >= 2 && t.samples <= settings_.denoise_options.max_samples;
+  };
+  if (std::none_of(tiles_.begin(), tiles_.end(), in_filter_range)) {
+    if (report) *report = DenoiseReport{0, 0, seconds_since(start)};
+    return out;
+  }
   const SessionBuffers b = session_buffers(pixels_, camera_.width, camera_.height);
   std::vector<cv::Rect> judged;
   for (const TileStatus& t : tiles_)
-    if (t.affected && t.samples >= 2 && t.samples <= settings_.denoise_options.max_samples &&
-        cv::countNonZero(b.touched(t.rect)) > 0)
-      judged.push_back(t.rect);
+    if (in_filter_range(t) && cv::countNonZero(b.touched(t.rect)) > 0) judged.push_back(t.rect);
   DenoiseReport r;
   r.tiles_judged = static_cast<int>(judged.size());
   if (!judged.empty()) {
