@@ -6,6 +6,8 @@
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 
+#include "luminance.h"
+
 namespace propcam::render {
 namespace {
 
@@ -21,7 +23,7 @@ constexpr double kMinDepthScale = 1e-4;
 constexpr std::array<float, 5> kKernel = {1.f / 16, 1.f / 4, 3.f / 8, 1.f / 4, 1.f / 16};
 constexpr int kMaxLevels = 10;
 
-float luminance(const cv::Vec3f& c) { return 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2]; }
+using detail::luminance;
 
 cv::Vec3f modulation(const cv::Vec3f& albedo) {
   cv::Vec3f m;

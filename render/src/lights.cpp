@@ -7,6 +7,7 @@
 #include <optional>
 #include <stdexcept>
 
+#include "luminance.h"
 #include "spherical_rectangle.h"
 
 namespace propcam::render {
@@ -82,7 +83,7 @@ double sun_radius(double angular_radius) {
   return std::clamp(angular_radius, kMinSunAngularRadius, kMaxSunAngularRadius);
 }
 
-float luminance(const cv::Vec3f& c) { return 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2]; }
+using detail::luminance;
 
 // Index of the first cdf entry greater than u, clamped to a valid bin.
 int find_bin(const float* cdf, int n, float u) {

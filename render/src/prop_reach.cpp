@@ -6,6 +6,8 @@
 #include <limits>
 #include <numbers>
 
+#include "luminance.h"
+
 namespace propcam::render {
 namespace {
 
@@ -17,7 +19,7 @@ constexpr float kMinBoundsExtent = 1e-6f;
 // Luminance of a light below this is off.
 constexpr float kMinLightLuminance = 1e-12f;
 
-float luminance(const Vector3f& c) { return 0.2126f * c.x() + 0.7152f * c.y() + 0.0722f * c.z(); }
+using detail::luminance;
 
 // Slab test: does origin + t*dir, t > 0, meet the box?
 bool ray_hits_box(const Vector3f& origin, const Vector3f& dir, const Eigen::AlignedBox3f& box) {

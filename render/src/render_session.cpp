@@ -18,6 +18,18 @@ constexpr double kMinReferenceLuminance = 0.05;
 
 double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
+// Variance of a pixel's mean change luminance (its squared standard error).
+double mean_change_variance(const DifferentialPixel& p) {
+  const double n = std::max(1, p.samples);
+  const Eigen::Vector3f& s = p.change_sum;
+  const double mean = (0.2126 * s.x() + 0.7152 * s.y() + 0.0722 * s.z()) / n;
+  const double variance = std::max(0.0, p.change_luminance_sq_sum / n - mean * mean);
+  return n > 1 ? variance / (n - 1) : variance;
+}
+
+// Some sample of the pixel was changed by the prop.
+bool touched_by_prop(const DifferentialPixel& p) { return p.untouched < p.samples; }
+
 }  // namespace
 
 RenderSession::RenderSession(const Scene& scene, const PinholeCamera& camera, const LightRig& lights,
@@ -73,11 +85,7 @@ void RenderSession::render_tile(int index, int first_sample, int count) {
     for (int x = tile.rect.x; x < tile.rect.br().x; ++x, ++i) {
       const DifferentialPixel& p = local[i];
       pixels_[static_cast<size_t>(y) * camera_.width + x] = p;
-      const double n = std::max(1, p.samples);
-      const Eigen::Vector3f& s = p.change_sum;
-      const double mean = (0.2126 * s.x() + 0.7152 * s.y() + 0.0722 * s.z()) / n;
-      const double variance = std::max(0.0, p.change_luminance_sq_sum / n - mean * mean);
-      se2 += n > 1 ? variance / (n - 1) : variance;
+      se2 += mean_change_variance(p);
       const cv::Vec3f c = photo_.at<cv::Vec3f>(y, x);
       brightness += 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
     }
@@ -172,17 +180,16 @@ LightLayers RenderSession::light_layers() const {
 
 namespace {
 
-// The means of a session's pixels over all samples, the odd and the even
-// ones, the variance of the full mean's luminance, and which pixels the prop changed.
+// What the denoiser needs beside the mean change: the means over the odd and
+// the even samples, the variance of the full mean's luminance, and which
+// pixels the prop changed.
 struct SessionBuffers {
-  ChangeBuffer full;
-  cv::Mat odd, even, touched;
+  cv::Mat odd, even, variance, touched;
 };
 
 SessionBuffers session_buffers(const std::vector<DifferentialPixel>& pixels, int width, int height) {
   SessionBuffers b;
-  b.full.change = cv::Mat(height, width, CV_32FC3, cv::Scalar::all(0));
-  b.full.variance = cv::Mat(height, width, CV_32F, cv::Scalar(0));
+  b.variance = cv::Mat(height, width, CV_32F, cv::Scalar(0));
   b.odd = cv::Mat(height, width, CV_32FC3, cv::Scalar::all(0));
   b.even = cv::Mat(height, width, CV_32FC3, cv::Scalar::all(0));
   b.touched = cv::Mat(height, width, CV_8U, cv::Scalar(0));
@@ -192,15 +199,10 @@ SessionBuffers session_buffers(const std::vector<DifferentialPixel>& pixels, int
       if (p.samples == 0) continue;
       const auto to_vec = [](const Eigen::Vector3f& v) { return cv::Vec3f(v.x(), v.y(), v.z()); };
       const int odd = p.samples / 2, even = p.samples - odd;
-      b.full.change.at<cv::Vec3f>(y, x) = to_vec(p.change_sum) / static_cast<float>(p.samples);
       if (odd > 0) b.odd.at<cv::Vec3f>(y, x) = to_vec(p.change_sum_odd) / static_cast<float>(odd);
       b.even.at<cv::Vec3f>(y, x) = to_vec(p.change_sum - p.change_sum_odd) / static_cast<float>(even);
-      const double n = p.samples;
-      const Eigen::Vector3f& s = p.change_sum;
-      const double mean = (0.2126 * s.x() + 0.7152 * s.y() + 0.0722 * s.z()) / n;
-      const double variance = std::max(0.0, p.change_luminance_sq_sum / n - mean * mean);
-      b.full.variance.at<float>(y, x) = static_cast<float>(n > 1 ? variance / (n - 1) : variance);
-      b.touched.at<uint8_t>(y, x) = p.untouched < p.samples ? 255 : 0;
+      b.variance.at<float>(y, x) = static_cast<float>(mean_change_variance(p));
+      b.touched.at<uint8_t>(y, x) = touched_by_prop(p) ? 255 : 0;
     }
   return b;
 }
@@ -234,10 +236,10 @@ DifferentialRender RenderSession::denoised(DenoiseReport* report) const {
       guides = guides_;
     }
     // The odd half has about half the samples: twice the variance of the full mean.
-    const ChangeBuffer odd{b.odd, b.full.variance * 2.0};
+    const ChangeBuffer odd{b.odd, b.variance * 2.0};
     const cv::Mat odd_filtered = denoise_change(odd, b.touched, out.coverage, guides, settings_.denoise_options);
     const std::vector<bool> helps = filter_helps_per_tile(b.odd, odd_filtered, b.even, b.touched, judged);
-    const cv::Mat filtered = denoise_change(b.full, b.touched, out.coverage, guides, settings_.denoise_options);
+    const cv::Mat filtered = denoise_change({out.change, b.variance}, b.touched, out.coverage, guides, settings_.denoise_options);
     for (size_t i = 0; i < judged.size(); ++i)
       if (helps[i]) {
         filtered(judged[i]).copyTo(out.change(judged[i]));
@@ -258,7 +260,7 @@ cv::Mat RenderSession::touched() const {
   for (int y = 0; y < camera_.height; ++y)
     for (int x = 0; x < camera_.width; ++x) {
       const DifferentialPixel& p = pixels_[static_cast<size_t>(y) * camera_.width + x];
-      if (p.untouched < p.samples) mask.at<uint8_t>(y, x) = 255;
+      if (touched_by_prop(p)) mask.at<uint8_t>(y, x) = 255;
     }
   return mask;
 }

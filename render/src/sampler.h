@@ -15,8 +15,6 @@
 #pragma once
 
 #include <Eigen/Core>
-#include <algorithm>
-#include <bit>
 #include <cstdint>
 
 namespace propcam::render::detail {
@@ -106,7 +104,6 @@ class SobolSampler {
 
   // Where the next draw starts; the path tracer gives each bounce a fixed range.
   void set_dimension(int dimension) { dimension_ = dimension; }
-  int dimension() const { return dimension_; }
 
  private:
   uint32_t next_dimension_key() { return hash_combine(pixel_seed_, static_cast<uint32_t>(dimension_++)); }

@@ -6,6 +6,8 @@
 #include <optional>
 #include <sstream>
 
+#include "luminance.h"
+
 namespace propcam::render {
 namespace {
 
@@ -18,7 +20,7 @@ constexpr float kSpecularMaxRoughness = 0.3f;
 // floor: the most its bounce light can add, relative to the light already there.
 constexpr double kContactHemisphereShare = 0.25;
 
-float luminance(const Vector3f& c) { return 0.2126f * c.x() + 0.7152f * c.y() + 0.0722f * c.z(); }
+using detail::luminance;
 
 // The largest share of a spot's light any point of the props' bounding
 // sphere gets: its cone's attenuation at the sphere's point nearest the
