@@ -17,6 +17,7 @@
 #include "propcam/render/depth_mesh.h"
 #include "propcam/render/depth_of_field.h"
 #include "propcam/render/mesh_io.h"
+#include "propcam/render/photo_imaging.h"
 #include "propcam/render/placement.h"
 #include "propcam/render/props.h"
 #include "propcam/render/relight.h"
@@ -519,6 +520,11 @@ cv::Mat adjusted_composite(const Analysis& analysis, const RenderSnapshot& rende
   } else {
     out = render.composite * scene_scale;
   }
+  // The photo's blur and noise on the prop, once the render has ended (the
+  // screen's progressive snapshots stay raw).
+  if (!render.layers.coverage.empty())
+    out = render::match_camera(analysis.scene_photo * scene_scale, out, render.layers.coverage, analysis.scene.imaging,
+                               {}, analysis.scene.gamma);
   if (adjustment.aperture_m > 0 && !render.depth.empty()) {
     render::DepthOfField dof;
     dof.aperture_m = adjustment.aperture_m;

@@ -72,11 +72,14 @@ cv::Mat true_region(const WorldScene& w) {
 // The composite `propcam composite` writes, display-encoded; `placed` gets
 // where the prop stood. Throws as composite_prop does.
 cv::Mat composite_display(const WorldScene& w, const inference::SceneModel& scene, const render::Mesh& prop, int spp,
-                          render::PlacedProp* placed = nullptr) {
+                          const std::optional<render::CameraMatchOptions>& camera, render::PlacedProp* placed = nullptr) {
   render::RenderSettings settings;
   settings.samples_per_pixel = spp;
+  CompositeOptions options;
+  options.match_camera = camera.has_value();
+  if (camera) options.camera_match = *camera;
   const cv::Mat scene_photo = capture::srgb_linear_to_response_linear(w.photo_linear, scene.gamma);
-  const CompositeResult r = composite_prop(scene_photo, scene, prop, w.placement, settings);
+  const CompositeResult r = composite_prop(scene_photo, scene, prop, w.placement, settings, options);
   if (placed) *placed = r.placed;
   return to_display(capture::response_linear_to_srgb_linear(r.composite_linear, scene.gamma));
 }
@@ -135,6 +138,8 @@ struct Row {
   std::string sweep, label;
   std::function<void(inference::InferenceOptions&)> apply;  // null: the default inference
   int spp = 0;                                              // 0: the bench's
+  // The photo's camera effects the composite matches (null: none).
+  std::optional<render::CameraMatchOptions> camera = render::CameraMatchOptions{};
   bool truth = false;  // the world's truth stands in for the inference (own and Blender worlds)
   bool panorama = true;  // also measured on the panorama world
 };
@@ -173,7 +178,7 @@ std::vector<Row> rows_for(const std::vector<std::string>& sweeps, const std::str
                    [panoramas_only_classifier](inference::InferenceOptions& o) {
                      o.lighting.light_classifier = panoramas_only_classifier;
                    },
-                   0, false, false});
+                   0, render::CameraMatchOptions{}, false, false});
   if (wanted("outdoor_sources"))
     for (const auto& entry : {std::pair{"0.7", 0.7}, {"0.9", 0.9}}) {
       const double share = entry.second;  // a copy: lambdas may not capture structured bindings before clang 16
@@ -192,7 +197,16 @@ std::vector<Row> rows_for(const std::vector<std::string>& sweeps, const std::str
   // camera, depth, albedo, lights and emitters; nothing out of the frame)
   // through our compositor and renderer. Where it falls short of the photo,
   // the scene model cannot carry the scene's light, whatever the inference.
-  if (wanted("oracle")) out.push_back({"oracle", "the truth as a scene model (oracle)", nullptr, 0, true});
+  if (wanted("oracle")) out.push_back({"oracle", "the truth as a scene model (oracle)", nullptr, 0, render::CameraMatchOptions{}, true});
+  // The camera match's effects one at a time and none, on the default inference.
+  if (wanted("camera")) {
+    render::CameraMatchOptions blur_only, noise_only;
+    blur_only.noise = false;
+    noise_only.blur = false;
+    out.push_back({"camera", "camera match off", nullptr, 0, std::nullopt, false, false});
+    out.push_back({"camera", "camera match: blur only", nullptr, 0, blur_only, false, false});
+    out.push_back({"camera", "camera match: noise only", nullptr, 0, noise_only, false, false});
+  }
   return out;
 }
 
@@ -244,7 +258,8 @@ json score_world_scene(const WorldScene& w, const inference::InferenceOptions& o
   return score_world_estimate(w, est, seconds_since(start), spp);
 }
 
-json score_world_estimate(const WorldScene& w, const inference::SceneModel& est, double inference_seconds, int spp) {
+json score_world_estimate(const WorldScene& w, const inference::SceneModel& est, double inference_seconds, int spp,
+                          const std::optional<render::CameraMatchOptions>& camera_match) {
   json row = {{"world", w.world}, {"scene", w.name}, {"split", w.split}, {"kind", w.kind},
               {"indoor_true", w.truth.indoor}, {"indoor", est.indoor}, {"indoor_right", est.indoor == w.truth.indoor},
               {"truth_noise_8bit", number_or_null(w.render_noise_8bit)}};
@@ -283,7 +298,7 @@ json score_world_estimate(const WorldScene& w, const inference::SceneModel& est,
     render::PlacedProp placed;
     cv::Mat composite;
     try {
-      composite = composite_display(w, est, prop, spp, &placed);
+      composite = composite_display(w, est, prop, spp, camera_match, &placed);
       row["placed"] = true;
     } catch (const std::invalid_argument& e) {
       // The appliance refuses the spot: the user keeps the photo.
@@ -302,7 +317,7 @@ json score_world_estimate(const WorldScene& w, const inference::SceneModel& est,
     // The Khan-style baseline: the same scene, lit only by the photo wrapped onto a sphere.
     const inference::SceneModel khan = khan_baseline(est, w.photo_linear);
     try {
-      row["khan"] = image_scores(composite_display(w, khan, prop, spp), w, region);
+      row["khan"] = image_scores(composite_display(w, khan, prop, spp, camera_match), w, region);
     } catch (const std::invalid_argument&) {
       row["khan"] = row["photo"];
     }
@@ -444,13 +459,14 @@ json run_worlds_bench(const WorldsBenchOptions& o) {
       if (row.truth) {
         inference::SceneModel truth = s.truth;
         truth.light_source_mask = s.emitters;
-        per_world[s.world].push_back(score_world_estimate(s, truth, 0.0, spp));
+        truth.imaging = render::estimate_photo_imaging(s.photo_linear);  // the photo's, as the inference has it
+        per_world[s.world].push_back(score_world_estimate(s, truth, 0.0, spp, row.camera));
         continue;
       }
       if (row.apply) {
         inference::InferenceOptions options;
         row.apply(options);
-        per_world[s.world].push_back(score_world_scene(s, options_for(s, options, left_out), spp));
+        per_world[s.world].push_back(score_world_scene(s, options_for(s, options, left_out), spp));  // camera matched
         continue;
       }
       auto& [estimate, seconds] = default_estimates[i];
@@ -460,7 +476,7 @@ json run_worlds_bench(const WorldsBenchOptions& o) {
         estimate = inference::infer_scene(s.photo_linear, options_for(s, defaults, left_out));
         seconds = seconds_since(start);
       }
-      per_world[s.world].push_back(score_world_estimate(s, estimate, seconds, spp));
+      per_world[s.world].push_back(score_world_estimate(s, estimate, seconds, spp, row.camera));
     }
     for (auto& [world, rows] : per_world) worlds[world] = {{"summary", summarise_world(rows)}, {"scenes", rows}};
     if (wants("panorama") && row.panorama && !row.truth && (row.apply || row.sweep == "default")) {
@@ -582,7 +598,7 @@ CLI::App* add_bench_worlds_command(CLI::App& bench, WorldsBenchArgs& a) {
   cmd->add_option("--own-spp", a.options.own.spp, "Own world: samples per pixel of photos and insertions")->check(CLI::Range(1, 4096));
   cmd->add_option("--panoramas", a.options.panorama.panoramas, "Panorama world: names or EXR files (default: all 26)")->delimiter(',');
   cmd->add_option("--views", a.options.panorama.views_per_panorama, "Panorama world: views per panorama")->check(CLI::PositiveNumber);
-  cmd->add_option("--sweeps", a.sweeps, "Extra rows: comma-separated subset of spp,albedo,grey_world,fit,lights,outdoor_sources,enclosure,geometry,oracle (the true scene)");
+  cmd->add_option("--sweeps", a.sweeps, "Extra rows: comma-separated subset of spp,albedo,grey_world,fit,lights,outdoor_sources,enclosure,geometry,oracle (the true scene),camera (the camera match's effects)");
   cmd->add_option("--plot", a.options.plot_dir, "Write worlds.png (gnuplot) to this folder");
   cmd->add_flag("--json", a.json_out, "Machine-readable output");
   return cmd;
@@ -591,7 +607,7 @@ CLI::App* add_bench_worlds_command(CLI::App& bench, WorldsBenchArgs& a) {
 int run_bench_worlds_command(WorldsBenchArgs a) {
   a.options.worlds = parse_sweeps(a.worlds, {"own", "blender", "panorama"});
   if (a.options.worlds.empty()) throw std::invalid_argument("--worlds names no world");
-  a.options.sweeps = parse_sweeps(a.sweeps, {"spp", "albedo", "grey_world", "fit", "lights", "outdoor_sources", "enclosure", "geometry", "oracle"});
+  a.options.sweeps = parse_sweeps(a.sweeps, {"spp", "albedo", "grey_world", "fit", "lights", "outdoor_sources", "enclosure", "geometry", "oracle", "camera"});
   parse_bench_size(a.own_size, 16, a.options.own.width, a.options.own.height);
   a.options.quiet = a.json_out;
   const json result = run_worlds_bench(a.options);

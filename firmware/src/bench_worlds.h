@@ -11,6 +11,7 @@
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -36,9 +37,11 @@ struct WorldsBenchOptions {
 // (inference and composite at `spp`; run_worlds_bench leaves a tune scene's
 // photo out of the models first); a JSON row (worlds.md lists its keys).
 nlohmann::json score_world_scene(const WorldScene& scene, const inference::InferenceOptions& options, int spp);
-// The same on an estimate already made (in `inference_seconds`).
+// The same on an estimate already made (in `inference_seconds`); `camera`
+// says which of the photo's camera effects the composite matches (null: none).
 nlohmann::json score_world_estimate(const WorldScene& scene, const inference::SceneModel& estimate,
-                                    double inference_seconds, int spp);
+                                    double inference_seconds, int spp,
+                                    const std::optional<render::CameraMatchOptions>& camera = render::CameraMatchOptions{});
 // Medians, rates and mean seconds over a world's rows.
 nlohmann::json summarise_world(const nlohmann::json& scene_rows);
 

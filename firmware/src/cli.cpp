@@ -170,7 +170,7 @@ struct CompositeArgs {
   LensPrior lens;
   int spp = 16, bounces = kDefaultCliBounces;
   uint64_t seed = 0x5eed;
-  bool json_out = false, explain = false, no_cull = false, no_denoise = false;
+  bool json_out = false, explain = false, no_cull = false, no_denoise = false, no_camera_match = false;
   double aperture = 0, focus = 0;
   std::string light_scale;  // "I=S,I=S": relight after rendering
   bool relight_scene = false;
@@ -226,6 +226,13 @@ json render_plan_json(const CompositeResult& r) {
                      {"seconds", r.reach.seconds}}}};
 }
 
+json camera_match_json(const render::CameraMatchReport& r) {
+  json steps = json::array();
+  for (const auto& step : r.steps) steps.push_back({{"effect", step.effect}, {"applied", step.applied}, {"why", step.why}});
+  return {{"steps", steps}, {"blur_sigma_px", r.blur_sigma_px}, {"noise_added_8bit", r.noise_added_8bit},
+          {"prop_noise_8bit", r.prop_noise_8bit}, {"seconds", r.seconds}};
+}
+
 void print_render_plan(const json& plan) {
   for (const auto& d : plan["transport"])
     std::fprintf(stderr, "plan: %-20s %-9s %s\n", d["effect"].get<std::string>().c_str(),
@@ -276,6 +283,8 @@ int cmd_composite(const CompositeArgs& a) {
   options.cull_tiles = !a.no_cull;
   options.plan.allow_skips = !a.no_cull;
   options.denoise = !a.no_denoise;
+  options.match_camera = !a.no_camera_match;
+  options.camera_match.seed = a.seed;
   options.light_layers = !a.light_scale.empty();
   options.scene_layers_width = a.relight_scene && !a.light_scale.empty() ? kSceneLayerWidth : 0;
   // Light is added in the photo's own linear space: its camera response
@@ -288,6 +297,9 @@ int cmd_composite(const CompositeArgs& a) {
     const render::LightScales scales = parse_light_scales(a.light_scale, static_cast<int>(result.layers.change.size()));
     final_image = a.relight_scene ? render::relight_scene(scene_photo, result.layers, result.scene_layers, scales)
                                   : render::relight_prop(scene_photo, result.layers, scales);
+    if (options.match_camera)
+      final_image = render::match_camera(scene_photo, final_image, result.render.coverage, scene.imaging,
+                                         options.camera_match, scene.gamma);
   }
   json dof_json = nullptr;
   if (a.aperture > 0) {
@@ -316,6 +328,7 @@ int cmd_composite(const CompositeArgs& a) {
                                {"tiles_filtered", result.denoise.tiles_filtered},
                                {"seconds", result.denoise.seconds}}},
                   {"plan", plan},
+                  {"camera_match", camera_match_json(result.camera_match)},
                   {"insertion_constraint", {{"applied", result.flattening.applied},
                                             {"plane_height_m", result.flattening.plane_height_m},
                                             {"pixels", result.flattening.pixels_changed},
@@ -326,7 +339,12 @@ int cmd_composite(const CompositeArgs& a) {
   else {
     std::fprintf(stderr, "render %.2fs, %.1f Mrays, %.0f%% of traced samples untouched by the prop (no second path)\n",
                  st.seconds, st.rays / 1e6, 100.0 * skipped);
-    if (a.explain) print_render_plan(plan);
+    if (a.explain) {
+      print_render_plan(plan);
+      if (result.camera_match.steps.empty()) std::fprintf(stderr, "camera: match off (--no-camera-match)\n");
+      for (const auto& step : result.camera_match.steps)
+        std::fprintf(stderr, "camera: %-20s %-9s %s\n", step.effect.c_str(), step.applied ? "match" : "skip", step.why.c_str());
+    }
     progress.stage("wrote " + a.out);
   }
   return 0;
@@ -603,6 +621,8 @@ int run_cli(int argc, char** argv) {
       ->check(CLI::PositiveNumber);
   composite->add_flag("--no-cull", comp.no_cull, "Simulate everything: every tile, light and path (to measure what the plan saves)");
   composite->add_flag("--no-denoise", comp.no_denoise, "Keep the raw Monte Carlo change (no edge-aware filter of the prop's change)");
+  composite->add_flag("--no-camera-match", comp.no_camera_match,
+                      "Leave the prop as rendered (the photo's blur and noise not matched)");
 
   PropsArgs props_args;
   auto* props = app.add_subcommand("props", "List the preset props (and render their thumbnails)");

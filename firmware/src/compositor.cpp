@@ -144,6 +144,9 @@ CompositeResult composite_prop(const cv::Mat& photo_linear, const inference::Sce
   }
   result.render = options.denoise ? session.denoised(&result.denoise) : session.differential();
   result.composite_linear = render::composite_differential(photo_linear, result.render);
+  if (options.match_camera)
+    result.composite_linear = render::match_camera(photo_linear, result.composite_linear, result.render.coverage,
+                                                   scene.imaging, options.camera_match, scene.gamma, &result.camera_match);
   result.tiles = session.tiles();
   result.reach = session.reach();
   if (session_settings.render.light_layers)

@@ -10,6 +10,7 @@
 #include "propcam/inference/scene_model.h"
 #include "propcam/render/mesh.h"
 #include "propcam/render/path_tracer.h"
+#include "propcam/render/photo_imaging.h"
 #include "propcam/inference/support_planes.h"
 #include "propcam/render/placement.h"
 #include "propcam/render/render_session.h"
@@ -71,6 +72,10 @@ struct CompositeOptions {
   // Filter the prop's change where the half buffers say it lowers the error
   // (render/denoise.h); per-light layers stay unfiltered.
   bool denoise = true;
+  // Give the prop the photo's blur and noise where the scene's imaging
+  // estimate says the photo has them (render/photo_imaging.h).
+  bool match_camera = true;
+  render::CameraMatchOptions camera_match;
   // Called after each progressive pass with the session (snapshot, tiles, errors).
   std::function<void(const render::RenderSession&, const render::PassReport&)> on_pass;
 };
@@ -79,6 +84,7 @@ struct CompositeResult {
   cv::Mat composite_linear;  // CV_32FC3
   render::DifferentialRender render;     // denoised where it helped, with options.denoise
   render::DenoiseReport denoise;
+  render::CameraMatchReport camera_match;  // with options.match_camera
   render::PlacedProp placed;
   double scene_build_seconds = 0.0;
   std::vector<render::PassReport> passes;

@@ -1,6 +1,7 @@
 #include "propcam/inference/infer.h"
 
 #include <algorithm>
+#include <cstdio>
 #include <cmath>
 #include <map>
 #include <memory>
@@ -212,6 +213,19 @@ cv::Mat sanitised(const cv::Mat& photo_linear, const InferenceOptions& options) 
   return cv::min(cv::max(photo, 0.0), kMaxPhotoRadiance);
 }
 
+StageReport imaging_report(const render::PhotoImaging& m) {
+  StageReport r;
+  r.stage = "imaging";
+  r.seconds = m.seconds;
+  char blur[48] = "not measured (too few isolated edges)", noise[48] = "not measured (too few flat blocks)";
+  if (m.blur_measured) std::snprintf(blur, sizeof blur, "sigma %.2f px", m.blur_sigma_px);
+  if (m.noise_measured) std::snprintf(noise, sizeof noise, "%.1f levels (median)", m.noise.median_8bit());
+  r.why = std::string("edge blur ") + blur + ", noise " + noise;
+  r.details = {{"blur_sigma_px", m.blur_sigma_px}, {"blur_edges", m.blur_edges},
+               {"noise_median_8bit", m.noise.median_8bit()}, {"noise_blocks", m.noise_blocks}};
+  return r;
+}
+
 }  // namespace
 
 SceneModel complete_scene(const cv::Mat& photo_linear, const GeometryEstimate& g, const InferenceOptions& options) {
@@ -231,6 +245,10 @@ SceneModel complete_scene(const cv::Mat& photo_linear, const GeometryEstimate& g
   scene.planes = g.planes;
   scene.reports = g.reports;
   const render::PinholeCamera& camera = g.pinhole;
+
+  if (options.on_stage) options.on_stage("imaging");
+  scene.imaging = render::estimate_photo_imaging(photo);
+  scene.reports.push_back(imaging_report(scene.imaging));
 
   if (options.on_stage) options.on_stage("albedo");
   StageReport albedo_report;

@@ -56,6 +56,34 @@ LightSource::Type light_type_from_string(const std::string& s) {
   throw std::runtime_error("scene.json: unknown light type '" + s + "'");
 }
 
+// Bounds on the imaging a scene file may carry: an edge blur and a noise
+// level beyond these are not a camera's (the estimators stop at 8 px).
+constexpr double kMaxImagingBlurPx = 8.0, kMaxImagingNoise = 0.5;
+
+json imaging_json(const render::PhotoImaging& m) {
+  json sigma = json::array();
+  for (const auto& bin : m.noise.sigma) sigma.push_back({bin[0], bin[1], bin[2]});
+  return {{"blur_measured", m.blur_measured}, {"blur_sigma_px", m.blur_sigma_px}, {"blur_edges", m.blur_edges},
+          {"noise_measured", m.noise_measured}, {"noise_blocks", m.noise_blocks}, {"noise_sigma", sigma}};
+}
+
+render::PhotoImaging imaging_from_json(const json& j) {
+  render::PhotoImaging m;
+  m.blur_measured = j.value("blur_measured", false);
+  m.blur_sigma_px = j.value("blur_sigma_px", 0.0);
+  m.blur_edges = json_int_or(j, "blur_edges", 0);
+  m.noise_measured = j.value("noise_measured", false);
+  m.noise_blocks = json_int_or(j, "noise_blocks", 0);
+  const json sigma = j.value("noise_sigma", json::array());
+  if (!sigma.empty() && sigma.size() != render::kNoiseBins)
+    throw std::runtime_error("scene.json: imaging noise_sigma needs " + std::to_string(render::kNoiseBins) + " bins");
+  for (size_t b = 0; b < sigma.size(); ++b) {
+    const Eigen::Vector3d v = vec3(sigma[b], "imaging noise_sigma bin");
+    for (int c = 0; c < 3; ++c) m.noise.sigma[b][c] = static_cast<float>(v[c]);
+  }
+  return m;
+}
+
 void check_finite(const cv::Mat& m, const char* what) {
   if (!m.empty() && !cv::checkRange(m)) throw std::runtime_error(std::string("scene model: non-finite ") + what);
 }
@@ -158,6 +186,11 @@ void SceneModel::validate() const {
     if (l.type == LightSource::Type::Point && !(l.radius >= kMinPointLightRadiusM && l.radius <= kMaxPointLightRadiusM))
       throw std::runtime_error("scene model: a point light's radius must lie in [1e-4, 2] m");
   }
+  if (!(imaging.blur_sigma_px >= 0 && imaging.blur_sigma_px <= kMaxImagingBlurPx))
+    throw std::runtime_error("scene model: the imaging's blur must lie in [0, 8] px");
+  for (const auto& bin : imaging.noise.sigma)
+    for (float v : bin)
+      if (!(v >= 0 && v <= kMaxImagingNoise)) throw std::runtime_error("scene model: the imaging's noise must lie in [0, 0.5]");
   if (hidden_facades.size() > kMaxHiddenFacades) throw std::runtime_error("scene model: too many hidden facades");
   for (const auto& f : hidden_facades) f.validate();
   enclosure.validate();
@@ -224,6 +257,7 @@ void save_scene(const SceneModel& scene, const std::string& folder) {
   if (!scene.enclosure.empty())
     j["enclosure"] = {{"min", vec(scene.enclosure.min)}, {"max", vec(scene.enclosure.max)},
                       {"albedo", vec(scene.enclosure.albedo.cast<double>())}};
+  j["imaging"] = imaging_json(scene.imaging);
   json reports = json::array();
   for (const auto& r : scene.reports) reports.push_back(to_json(r));
   j["reports"] = reports;
@@ -319,6 +353,7 @@ SceneModel load_scene(const std::string& folder) {
       s.enclosure.albedo = vec3(ej.at("albedo"), "enclosure albedo").cast<float>();
       if (s.enclosure.empty()) throw std::runtime_error("the enclosure's max corner is not above its min");
     }
+    if (j.contains("imaging")) s.imaging = imaging_from_json(j.at("imaging"));
     for (const json& rj : j.value("reports", json::array())) {
       StageReport r;
       r.stage = rj.value("stage", "");

@@ -103,6 +103,67 @@ TEST_F(CompositeTest, InferredCameraAndDepthMatchGroundTruth) {
   EXPECT_LT(cv::mean(rel)[0], 0.2);
 }
 
+// The photo made grey: whatever the inference finds in it, a white prop
+// must come out white (no tint from fitted lights or albedo).
+TEST_F(CompositeTest, ANeutralPropInANeutralPhotoStaysNeutral) {
+  cv::Mat grey_photo;
+  cv::transform(shot_->photo_linear, grey_photo, cv::Matx33f(0.2126f, 0.7152f, 0.0722f, 0.2126f, 0.7152f, 0.0722f,
+                                                              0.2126f, 0.7152f, 0.0722f));
+  const inference::SceneModel scene = inference::infer_scene(grey_photo);
+  MaterialOverride white;
+  white.type = "diffuse";
+  white.albedo = Eigen::Vector3f(0.8f, 0.8f, 0.8f);
+  render::RenderSettings s;
+  s.samples_per_pixel = 16;
+  const CompositeResult r = composite_prop(grey_photo, scene, load_prop("cube", white), at_free_floor(0.4), s);
+  const cv::Mat on_prop = r.render.coverage > 0.99f;
+  ASSERT_GT(cv::countNonZero(on_prop), 50);
+  const cv::Scalar mean = cv::mean(r.composite_linear, on_prop);
+  const double grey = (mean[0] + mean[1] + mean[2]) / 3.0;
+  ASSERT_GT(grey, 0.0);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(mean[c] / grey, 1.0, 0.02) << "channel " << c;
+}
+
+// A photo blurred by a known sigma: its blur is read, and the prop's
+// silhouette comes out as soft as the photo's edges (the camera match),
+// within 20%.
+TEST_F(CompositeTest, APropInABlurredPhotoIsAsSoftAsThePhoto) {
+  constexpr double kSigma = 1.5;
+  cv::Mat blurred;
+  cv::GaussianBlur(shot_->photo_linear, blurred, {11, 11}, kSigma, kSigma, cv::BORDER_REFLECT);
+  // The true room, with the imaging the inference estimates from the photo.
+  inference::SceneModel scene = shot_->truth;
+  scene.imaging = render::estimate_photo_imaging(blurred);
+  ASSERT_TRUE(scene.imaging.blur_measured);
+  // The room's own edges are not all steps (penumbrae, shading): the
+  // estimate is the blur added to what the unblurred photo reads.
+  const double own = render::estimate_photo_imaging(shot_->photo_linear).blur_sigma_px;
+  const double expected = std::hypot(kSigma, own);
+  EXPECT_NEAR(scene.imaging.blur_sigma_px, expected, 0.2 * expected) << "unblurred photo " << own;
+  render::RenderSettings s;
+  s.samples_per_pixel = 32;
+  const render::Mesh prop = load_prop("cube");
+  const CompositeResult matched = composite_prop(blurred, scene, prop, at_free_floor(0.5), s);
+  CompositeOptions raw_options;
+  raw_options.match_camera = false;
+  const CompositeResult raw = composite_prop(blurred, scene, prop, at_free_floor(0.5), s, raw_options);
+  ASSERT_EQ(matched.camera_match.steps.size(), 2u);
+  EXPECT_TRUE(matched.camera_match.steps[0].applied) << matched.camera_match.steps[0].why;
+  // The prop's silhouette: a band around where its coverage crosses a half.
+  const cv::Mat inside = raw.render.coverage > 0.5f;
+  cv::Mat grown, shrunk;
+  cv::dilate(inside, grown, cv::Mat(), {-1, -1}, 2);
+  cv::erode(inside, shrunk, cv::Mat(), {-1, -1}, 2);
+  const cv::Mat band = grown & ~shrunk;
+  int edges_raw = 0, edges_matched = 0;
+  const double sigma_raw = render::estimate_edge_blur(raw.composite_linear, band, &edges_raw);
+  const double sigma_matched = render::estimate_edge_blur(matched.composite_linear, band, &edges_matched);
+  ASSERT_GT(edges_matched, 0);
+  EXPECT_LT(sigma_raw, kSigma * 0.6) << "rendered edges are sharp (" << edges_raw << " edge pixels)";
+  EXPECT_NEAR(sigma_matched, scene.imaging.blur_sigma_px, 0.2 * scene.imaging.blur_sigma_px)
+      << edges_matched << " edge pixels";
+}
+
 TEST_F(CompositeTest, SameSeedSameComposite) {
   const CompositeResult a = composite(shot_->truth, "mug", 0.3, 2);
   const CompositeResult b = composite(shot_->truth, "mug", 0.3, 2);

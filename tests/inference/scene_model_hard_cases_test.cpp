@@ -101,5 +101,33 @@ TEST_F(SceneJsonHardCases, APointLightsRadiusLoadsDefaultsAndIsBounded) {
   EXPECT_DOUBLE_EQ(load_scene((dir_ / "again").string()).lights.at(0).radius, 0.3);
 }
 
+// The photo's imaging (render/photo_imaging.h) travels in scene.json: it
+// loads back as saved, a file without it matches nothing, and values no
+// camera gives are refused.
+TEST_F(SceneJsonHardCases, ThePhotosImagingRoundTripsAndIsBounded) {
+  SceneModel scene = load(scene_json());
+  EXPECT_FALSE(scene.imaging.blur_measured) << "an older scene.json has no imaging: nothing is matched";
+  scene.imaging.blur_measured = true;
+  scene.imaging.blur_sigma_px = 1.25;
+  scene.imaging.noise_measured = true;
+  scene.imaging.noise.sigma[3] = {0.01f, 0.02f, 0.03f};
+  const fs::path saved = dir_ / "saved";
+  save_scene(scene, saved.string());
+  const SceneModel back = load_scene(saved.string());
+  EXPECT_TRUE(back.imaging.blur_measured);
+  EXPECT_DOUBLE_EQ(back.imaging.blur_sigma_px, 1.25);
+  EXPECT_FLOAT_EQ(back.imaging.noise.sigma[3][2], 0.03f);
+  const std::string base = scene_json();
+  const auto with_imaging = [&](const std::string& imaging) {
+    return base.substr(0, base.size() - 1) + R"(, "imaging": )" + imaging + "}";
+  };
+  EXPECT_NE(error_of(with_imaging(R"({"blur_sigma_px": 1e300})")).find("blur"), std::string::npos);
+  EXPECT_NE(error_of(with_imaging(R"({"blur_sigma_px": -1})")).find("blur"), std::string::npos);
+  EXPECT_NE(error_of(with_imaging(R"({"noise_sigma": [[0, 0, 0]]})")).find("bins"), std::string::npos);
+  EXPECT_NE(error_of(with_imaging(R"({"noise_sigma": [[9,9,9],[0,0,0],[0,0,0],[0,0,0],[0,0,0],[0,0,0],[0,0,0],[0,0,0]]})"))
+                .find("noise"),
+            std::string::npos);
+}
+
 }  // namespace
 }  // namespace propcam::inference

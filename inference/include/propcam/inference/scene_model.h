@@ -13,6 +13,7 @@
 #include "propcam/inference/room_enclosure.h"
 #include "propcam/render/camera.h"
 #include "propcam/render/lights.h"
+#include "propcam/render/photo_imaging.h"
 
 namespace propcam::inference {
 
@@ -97,6 +98,9 @@ struct SceneModel {
   // Indoors: the room closed around what the photo shows (room_enclosure.h);
   // the compositor adds it as the lighting did. Empty: open.
   RoomEnclosure enclosure;
+  // What the photo's camera did beyond light (blur, noise), for the
+  // composite to do the same to the prop (render/photo_imaging.h).
+  render::PhotoImaging imaging;
   std::vector<StageReport> reports;
   std::string source_photo;
 

@@ -1,0 +1,110 @@
+// What the camera that took a photo did to it beyond light, estimated from
+// the photo alone, and the same done to what we render into it, so that an
+// inserted prop is as soft and as grainy as the photo around it:
+//   - blur: a Gaussian point spread on top of a pixel's own footprint (lens,
+//     demosaicing, resampling, JPEG), measured at isolated step edges (their
+//     lower quartile) by re-blurring (Zhuo & Sim 2011), with the discrete
+//     operators' own response calibrated out;
+//   - noise: a noise level function per channel in display values (the
+//     signal-dependent sensor noise after the tone curve), the lower
+//     envelope of a Laplacian-like residual (Immerkaer 1996) over 8x8 blocks,
+//     binned by intensity (Liu et al. 2006's idea, without their prior).
+// Our renderer's pixel is a box with no further blur, so the photo's blur is
+// what the prop lacks; its noise lacks the photo's noise less its own.
+#pragma once
+
+#include <opencv2/core.hpp>
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace propcam::render {
+
+// Intensity bins of the noise level function over display values [0, 1].
+constexpr int kNoiseBins = 8;
+
+struct NoiseLevelFunction {
+  // Standard deviation in display values ([0, 1]) per bin and channel (RGB);
+  // every bin filled (bins without blocks take the nearest measured bin).
+  std::array<std::array<float, 3>, kNoiseBins> sigma{};
+  // Linear interpolation between bin centres, clamped at the ends.
+  float at(int channel, float display_value) const;
+  // The median over bins and channels, in 8-bit levels.
+  double median_8bit() const;
+};
+
+struct PhotoImaging {
+  bool blur_measured = false;   // enough isolated edges to tell
+  double blur_sigma_px = 0.0;   // Gaussian sigma beyond a box pixel
+  int blur_edges = 0;           // edge pixels the estimate is the median of
+  bool noise_measured = false;  // enough flat blocks to tell
+  NoiseLevelFunction noise;
+  int noise_blocks = 0;         // blocks the lower envelope was taken over
+  double seconds = 0.0;
+};
+
+// Below this sigma an edge is as sharp as our render's (box pixels): no blur is matched.
+constexpr double kMinMatchedBlurPx = 0.45;
+// Below this (8-bit levels, the median of the noise level function) the
+// photo is as clean as an 8-bit file of our render: no noise is matched.
+constexpr double kMinMatchedNoise8bit = 0.8;
+
+// `display` CV_32FC3 in [0, 1] (an 8-bit file's values / 255). `mask`
+// (CV_8U, optional) limits the blocks to where it is non-zero.
+NoiseLevelFunction estimate_noise_level(const cv::Mat& display, const cv::Mat& mask, int* blocks_used = nullptr);
+
+// `linear` CV_32FC3 or CV_32F, linear light. `mask` (CV_8U, optional) limits
+// the edges to where it is non-zero. Returns the blur sigma in pixels of the
+// isolated step edges found, their lower quartile (a photo's edges are its
+// point spread or wider); 0 when `edges_used` is 0.
+double estimate_edge_blur(const cv::Mat& linear, const cv::Mat& mask = {}, int* edges_used = nullptr);
+
+// Both, on a photo decoded with the sRGB curve (capture::load_photo_linear).
+PhotoImaging estimate_photo_imaging(const cv::Mat& photo_srgb_linear);
+
+// The camera match applied to a composite.
+struct CameraMatchOptions {
+  bool blur = true;
+  bool noise = true;
+  uint64_t seed = 1;  // the matched noise is a pure function of (seed, pixel around the prop, channel)
+};
+
+struct CameraMatchStep {
+  std::string effect;  // "blur" | "noise"
+  bool applied = false;
+  std::string why;
+};
+
+struct CameraMatchReport {
+  std::vector<CameraMatchStep> steps;
+  double blur_sigma_px = 0.0;        // applied to the prop's change
+  double noise_added_8bit = 0.0;     // median sigma added to the prop's pixels
+  double prop_noise_8bit = 0.0;      // the render's own noise on them, measured
+  double seconds = 0.0;
+};
+
+// The photo's blur given to what the prop adds: the prop's layer (its
+// pixels weighted by `coverage`, CV_32F in [0, 1], plus the change it makes
+// to the rest) blurred and laid over the photo through the blurred
+// coverage, so that the photo's pixels hidden by the prop do not show
+// through. Linear images in one space; pixels farther than the kernel's
+// reach from the prop and its change stay bit-identical.
+cv::Mat blur_change(const cv::Mat& photo_linear, const cv::Mat& composite_linear, const cv::Mat& coverage,
+                    double sigma_px);
+
+// Noise of the photo's level function, less what the prop's pixels already
+// carry, added to them (weighted by `coverage`, CV_32F in [0, 1]); `display`
+// CV_32FC3 in [0, 1]. The shadow a prop casts keeps the photo's own noise.
+cv::Mat add_matched_noise(const cv::Mat& display, const cv::Mat& coverage, const NoiseLevelFunction& photo_noise,
+                          uint64_t seed, CameraMatchReport* report = nullptr);
+
+// Both steps where the estimate says the photo has them, on a composite in
+// the photo's response-linear space (capture::srgb_linear_to_response_linear
+// with `response_gamma`): blur there, noise in display values. Returns the
+// matched composite in the same space.
+cv::Mat match_camera(const cv::Mat& photo_linear, const cv::Mat& composite_linear, const cv::Mat& coverage,
+                     const PhotoImaging& imaging, const CameraMatchOptions& options, double response_gamma,
+                     CameraMatchReport* report = nullptr);
+
+}  // namespace propcam::render
