@@ -72,7 +72,8 @@ cv::Mat true_region(const WorldScene& w) {
 // The composite `propcam composite` writes, display-encoded; `placed` gets
 // where the prop stood. Throws as composite_prop does.
 cv::Mat composite_display(const WorldScene& w, const inference::SceneModel& scene, const render::Mesh& prop, int spp,
-                          const std::optional<render::CameraMatchOptions>& camera, render::PlacedProp* placed = nullptr) {
+                          const std::optional<render::CameraMatchOptions>& camera, render::PlacedProp* placed = nullptr,
+                          render::CameraMatchReport* matched = nullptr) {
   render::RenderSettings settings;
   settings.samples_per_pixel = spp;
   CompositeOptions options;
@@ -81,6 +82,7 @@ cv::Mat composite_display(const WorldScene& w, const inference::SceneModel& scen
   const cv::Mat scene_photo = capture::srgb_linear_to_response_linear(w.photo_linear, scene.gamma);
   const CompositeResult r = composite_prop(scene_photo, scene, prop, w.placement, settings, options);
   if (placed) *placed = r.placed;
+  if (matched) *matched = r.camera_match;
   return to_display(capture::response_linear_to_srgb_linear(r.composite_linear, scene.gamma));
 }
 
@@ -88,6 +90,22 @@ json image_scores(const cv::Mat& image, const WorldScene& w, const cv::Mat& regi
   const double rmse = cv::countNonZero(region) ? rmse_in_mask(image, w.insertion_display, region) : std::nan("");
   return {{"rmse", number_or_null(rmse)},
           {"ssim", number_or_null(ssim_in_mask(image, w.insertion_display, region))}};
+}
+
+// The camera's look on the prop: the noise of its inside (8-bit levels, the
+// median of the noise level function) and the blur of its silhouette (px);
+// null where too little of either to measure.
+json prop_look(const cv::Mat& display, const cv::Mat& prop_mask) {
+  cv::Mat inside, grown, band, srgb8, linear;
+  cv::erode(prop_mask, inside, cv::Mat(), {-1, -1}, 2);
+  cv::dilate(prop_mask, grown, cv::Mat(), {-1, -1}, 2);
+  band = grown & ~inside;
+  int blocks = 0, edges = 0;
+  const render::NoiseLevelFunction noise = render::estimate_noise_level(display, inside, &blocks);
+  display.convertTo(srgb8, CV_8UC3, 255.0);
+  const double blur = render::estimate_edge_blur(capture::srgb8_to_linear(srgb8), band, &edges);
+  return {{"noise_8bit", blocks ? json(noise.median_8bit()) : json(nullptr)},
+          {"blur_px", edges ? json(blur) : json(nullptr)}};
 }
 
 json stage_seconds(const std::vector<inference::StageReport>& reports) {
@@ -198,6 +216,10 @@ std::vector<Row> rows_for(const std::vector<std::string>& sweeps, const std::str
   // through our compositor and renderer. Where it falls short of the photo,
   // the scene model cannot carry the scene's light, whatever the inference.
   if (wanted("oracle")) out.push_back({"oracle", "the truth as a scene model (oracle)", nullptr, 0, render::CameraMatchOptions{}, true});
+  if (wanted("colour"))
+    out.push_back({"colour", "light tint free of the photo's cast", [](inference::InferenceOptions& o) {
+                     o.lighting.tint_within_photo_cast = false;
+                   }});
   // The camera match's effects one at a time and none, on the default inference.
   if (wanted("camera")) {
     render::CameraMatchOptions blur_only, noise_only;
@@ -298,8 +320,14 @@ json score_world_estimate(const WorldScene& w, const inference::SceneModel& est,
     render::PlacedProp placed;
     cv::Mat composite;
     try {
-      composite = composite_display(w, est, prop, spp, camera_match, &placed);
+      render::CameraMatchReport matched;
+      composite = composite_display(w, est, prop, spp, camera_match, &placed, &matched);
       row["placed"] = true;
+      json steps = json::object();
+      for (const auto& step : matched.steps) steps[step.effect] = step.applied;
+      row["camera_match"] = {{"applied", steps}, {"blur_sigma_px", matched.blur_sigma_px},
+                             {"noise_added_8bit", matched.noise_added_8bit}, {"prop_noise_8bit", matched.prop_noise_8bit}};
+      seconds["camera_match"] = matched.seconds;
     } catch (const std::invalid_argument& e) {
       // The appliance refuses the spot: the user keeps the photo.
       composite = w.photo_display.clone();
@@ -308,6 +336,8 @@ json score_world_estimate(const WorldScene& w, const inference::SceneModel& est,
     }
     seconds["composite"] = seconds_since(t);
     row["composite"] = image_scores(composite, w, region);
+    if (row["placed"].get<bool>() && !w.prop_mask.empty())
+      row["prop_look"] = {{"composite", prop_look(composite, w.prop_mask)}, {"truth", prop_look(w.insertion_display, w.prop_mask)}};
     cv::Mat outside;
     cv::dilate(region, outside, disc(kOutsideMarginPx));
     outside = ~outside;
@@ -392,6 +422,18 @@ json summarise_rows(const json& rows) {
     s["composite_beats_photo_share"] = static_cast<double>(beats_photo) / composites;
     s["placed_share"] = static_cast<double>(placed) / composites;
     s["changed_outside_share_median"] = med({"changed_outside_share"});
+    // How far the prop's noise and edge blur are from the truth's, per scene.
+    const auto look_gap = [&](const char* what) {
+      return number_or_null(median(column(rows, [&](const json& r) {
+        return json(std::abs(num(at_path(r, {"prop_look", "composite", what})) - num(at_path(r, {"prop_look", "truth", what}))));
+      })));
+    };
+    s["prop_look"] = {{"noise_8bit_median", {{"composite", med({"prop_look", "composite", "noise_8bit"})},
+                                             {"truth", med({"prop_look", "truth", "noise_8bit"})}}},
+                      {"blur_px_median", {{"composite", med({"prop_look", "composite", "blur_px"})},
+                                          {"truth", med({"prop_look", "truth", "blur_px"})}}},
+                      {"noise_gap_8bit_median", look_gap("noise_8bit")},
+                      {"blur_gap_px_median", look_gap("blur_px")}};
   }
   // Mean seconds per stage over the scenes.
   std::map<std::string, double> total;
@@ -523,6 +565,15 @@ std::string format_worlds_bench(const json& r) {
                       num(at_path(s, {"khan", "ssim_median"})), 100 * num(at_path(s, {"placed_share"})),
                       num(at_path(s, {"changed_outside_share_median"})));
         out << line;
+        std::snprintf(line, sizeof line,
+                      "%-9s the prop's look: noise %.1f levels (truth %.1f; gap %.1f), silhouette blur %.2f px (truth %.2f; gap %.2f)\n",
+                      "", num(at_path(s, {"prop_look", "noise_8bit_median", "composite"})),
+                      num(at_path(s, {"prop_look", "noise_8bit_median", "truth"})),
+                      num(at_path(s, {"prop_look", "noise_gap_8bit_median"})),
+                      num(at_path(s, {"prop_look", "blur_px_median", "composite"})),
+                      num(at_path(s, {"prop_look", "blur_px_median", "truth"})),
+                      num(at_path(s, {"prop_look", "blur_gap_px_median"})));
+        out << line;
       }
       if (s.contains("clean_truth") && s["clean_truth"].contains("composite")) {
         const json& c = s["clean_truth"];
@@ -555,7 +606,8 @@ std::string format_worlds_bench(const json& r) {
          "|f/f_true - 1|; depth: abs-rel after median scaling; albedo: LMSE; dir: dominant light at the prop's base, "
          "camera frame; comp/photo/khan RMSE: display values over the prop's true region against the true "
          "insertion (the composite, the untouched photo, the Khan-style environment); beats photo: share of scenes "
-         "whose composite is closer than the photo; s/scene: inference + composite + probe\n";
+         "whose composite is closer than the photo; the prop's look: medians of the noise of its inside and the "
+         "edge blur of its silhouette, and of their gaps to the truth's, per scene; s/scene: inference + composite + probe\n";
   return out.str();
 }
 
@@ -598,7 +650,7 @@ CLI::App* add_bench_worlds_command(CLI::App& bench, WorldsBenchArgs& a) {
   cmd->add_option("--own-spp", a.options.own.spp, "Own world: samples per pixel of photos and insertions")->check(CLI::Range(1, 4096));
   cmd->add_option("--panoramas", a.options.panorama.panoramas, "Panorama world: names or EXR files (default: all 26)")->delimiter(',');
   cmd->add_option("--views", a.options.panorama.views_per_panorama, "Panorama world: views per panorama")->check(CLI::PositiveNumber);
-  cmd->add_option("--sweeps", a.sweeps, "Extra rows: comma-separated subset of spp,albedo,grey_world,fit,lights,outdoor_sources,enclosure,geometry,oracle (the true scene),camera (the camera match's effects)");
+  cmd->add_option("--sweeps", a.sweeps, "Extra rows: comma-separated subset of spp,albedo,grey_world,fit,lights,outdoor_sources,enclosure,geometry,oracle (the true scene),camera (the camera match's effects),colour (the light tint unbounded by the photo's cast)");
   cmd->add_option("--plot", a.options.plot_dir, "Write worlds.png (gnuplot) to this folder");
   cmd->add_flag("--json", a.json_out, "Machine-readable output");
   return cmd;
@@ -607,7 +659,7 @@ CLI::App* add_bench_worlds_command(CLI::App& bench, WorldsBenchArgs& a) {
 int run_bench_worlds_command(WorldsBenchArgs a) {
   a.options.worlds = parse_sweeps(a.worlds, {"own", "blender", "panorama"});
   if (a.options.worlds.empty()) throw std::invalid_argument("--worlds names no world");
-  a.options.sweeps = parse_sweeps(a.sweeps, {"spp", "albedo", "grey_world", "fit", "lights", "outdoor_sources", "enclosure", "geometry", "oracle", "camera"});
+  a.options.sweeps = parse_sweeps(a.sweeps, {"spp", "albedo", "grey_world", "fit", "lights", "outdoor_sources", "enclosure", "geometry", "oracle", "camera", "colour"});
   parse_bench_size(a.own_size, 16, a.options.own.width, a.options.own.height);
   a.options.quiet = a.json_out;
   const json result = run_worlds_bench(a.options);

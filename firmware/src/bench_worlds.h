@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "panorama_world.h"
+#include "propcam/render/photo_imaging.h"
 #include "world_scenes.h"
 
 namespace propcam::firmware {

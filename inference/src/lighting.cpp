@@ -647,6 +647,21 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
     if (level > 0)
       for (int c = 0; c < 3; ++c) gains[c] = level * std::clamp(gains[c] / level, 1.0 / max_tint, max_tint);
   }
+  // Nor against the photo's own cast: a camera's white balance leaves the
+  // light it saw neutral or with the cast the photo shows, never the
+  // opposite one (a warm hotel room fitted pale-blue lights, and a white
+  // plinth came out blue). Each channel's tint lies between neutral and the
+  // cast of the fit's pixels.
+  if (options.tint_within_photo_cast) {
+    Eigen::Vector3d photo_sum = Eigen::Vector3d::Zero();
+    for (const auto& v : photo_response) photo_sum += v;
+    const double level = luminance(gains), photo_level = luminance(photo_sum);
+    if (level > 0 && photo_level > 0)
+      for (int c = 0; c < 3; ++c) {
+        const double cast = photo_sum[c] / photo_level;
+        gains[c] = level * std::clamp(gains[c] / level, std::min(1.0, cast), std::max(1.0, cast));
+      }
+  }
   for (int c = 0; c < 3; ++c) {
     for (int i = 0; i < k; ++i)
       weights[i][c] = i == fixed ? sky_weight : (active[i] ? chosen.weights[i] * colours[i][c] * gains[c] : 0.0);

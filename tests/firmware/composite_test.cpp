@@ -124,6 +124,26 @@ TEST_F(CompositeTest, ANeutralPropInANeutralPhotoStaysNeutral) {
   for (int c = 0; c < 3; ++c) EXPECT_NEAR(mean[c] / grey, 1.0, 0.02) << "channel " << c;
 }
 
+// The same photo with a warm cast (a tungsten room, as a camera kept it):
+// the white prop may take the cast or stay white, never the opposite tint.
+TEST_F(CompositeTest, AWhitePropInAWarmPhotoIsNeverBluerThanWhite) {
+  cv::Mat warm;
+  cv::transform(shot_->photo_linear, warm, cv::Matx33f(0.2126f, 0.7152f, 0.0722f, 0.2126f * 0.8f, 0.7152f * 0.8f,
+                                                        0.0722f * 0.8f, 0.2126f * 0.55f, 0.7152f * 0.55f, 0.0722f * 0.55f));
+  const inference::SceneModel scene = inference::infer_scene(warm);
+  MaterialOverride white;
+  white.type = "diffuse";
+  white.albedo = Eigen::Vector3f(0.8f, 0.8f, 0.8f);
+  render::RenderSettings s;
+  s.samples_per_pixel = 16;
+  const CompositeResult r = composite_prop(warm, scene, load_prop("cube", white), at_free_floor(0.4), s);
+  const cv::Mat on_prop = r.render.coverage > 0.99f;
+  ASSERT_GT(cv::countNonZero(on_prop), 50);
+  const cv::Scalar mean = cv::mean(r.composite_linear, on_prop);
+  EXPECT_GE(mean[0], 0.99 * mean[1]) << "red below green: bluer than white";
+  EXPECT_GE(mean[1], 0.99 * mean[2]) << "green below blue: bluer than white";
+}
+
 // A photo blurred by a known sigma: its blur is read, and the prop's
 // silhouette comes out as soft as the photo's edges (the camera match),
 // within 20%.

@@ -113,5 +113,22 @@ TEST(RealPhotos, RoomCompositeCastsAShadowOnTheFloor) {
   EXPECT_GT(shadow.darker, kMinDarkerOverBrighter * shadow.brighter) << "darker " << shadow.darker;
 }
 
+// The hotel room is warm (wooden floor, tungsten-toned walls): its fitted
+// lights may carry that cast or none, never the opposite (they came out pale
+// blue, and so did a white plinth placed in it).
+TEST(RealPhotos, AWarmRoomsLightsAreNotBlue) {
+  if (!have(panorama_path("interior"))) GTEST_SKIP() << "install blender-data (scripts/setup.sh does)";
+  const RealView room = shoot_panorama_view(panorama_path("interior"), render::view_spec(135, -20, 65, 640, 480));
+  const cv::Scalar photo_mean = cv::mean(room.photo_linear);
+  ASSERT_GT(photo_mean[0], photo_mean[2]) << "the view is warm";
+  const inference::SceneModel scene = inference::infer_scene(room.photo_linear);
+  Eigen::Vector3d light = Eigen::Vector3d::Zero();
+  for (const auto& l : scene.lights)
+    if (l.type != inference::LightSource::Type::Ibl) light += l.intensity;
+  ASSERT_GT(light.sum(), 0.0);
+  EXPECT_GE(light[0], 0.99 * light[2]) << "lights " << light.transpose();
+  EXPECT_GE(light[1], 0.99 * light[2]) << "lights " << light.transpose();
+}
+
 }  // namespace
 }  // namespace propcam::firmware

@@ -47,6 +47,9 @@ struct LightingOptions {
   IntensityFitOptions fit;
   int max_fit_pixels = 512;             // fit pixels, evenly spread over the usable ones
   double max_light_tint = 4.0;          // per-channel balance of the fitted lights, relative to their luminance
+  // ... and each channel's tint between neutral and the photo's own cast
+  // (`propcam bench worlds --sweeps colour` turns it off; docs/camera_match.md).
+  bool tint_within_photo_cast = true;
   // Out-of-view source hypotheses the fit chooses among (and prunes): a grid
   // of ceiling panels indoors, sun directions outdoors.
   int ceiling_grid = 3;                 // n x n panels
