@@ -93,19 +93,21 @@ json image_scores(const cv::Mat& image, const WorldScene& w, const cv::Mat& regi
 }
 
 // The camera's look on the prop: the noise of its inside (8-bit levels, the
-// median of the noise level function) and the blur of its silhouette (px);
-// null where too little of either to measure.
+// mean over channels of the region's noise) and the blur of its silhouette
+// (px, from as few as kLookMinEdges edge pixels: props are small); null
+// where too little of either to measure.
+constexpr int kLookMinEdges = 10;
 json prop_look(const cv::Mat& display, const cv::Mat& prop_mask) {
-  cv::Mat inside, grown, band, srgb8, linear;
+  cv::Mat inside, grown, srgb8;
   cv::erode(prop_mask, inside, cv::Mat(), {-1, -1}, 2);
   cv::dilate(prop_mask, grown, cv::Mat(), {-1, -1}, 2);
-  band = grown & ~inside;
-  int blocks = 0, edges = 0;
-  const render::NoiseLevelFunction noise = render::estimate_noise_level(display, inside, &blocks);
+  const cv::Mat band = grown & ~inside;
+  int pixels = 0, edges = 0;
+  const std::array<float, 3> noise = render::region_noise_sigma(display, inside, &pixels);
   display.convertTo(srgb8, CV_8UC3, 255.0);
-  const double blur = render::estimate_edge_blur(capture::srgb8_to_linear(srgb8), band, &edges);
-  return {{"noise_8bit", blocks ? json(noise.median_8bit()) : json(nullptr)},
-          {"blur_px", edges ? json(blur) : json(nullptr)}};
+  const double blur = render::estimate_edge_blur(capture::srgb8_to_linear(srgb8), band, &edges, kLookMinEdges);
+  const double noise_8bit = 255.0 * (noise[0] + noise[1] + noise[2]) / 3.0;
+  return {{"noise_8bit", pixels >= render::kMinRegionNoisePixels ? json(noise_8bit) : json(nullptr)}, {"blur_px", edges ? json(blur) : json(nullptr)}};
 }
 
 json stage_seconds(const std::vector<inference::StageReport>& reports) {

@@ -804,9 +804,13 @@ ProbeResult score_light_probe(const PanoramaView& view, const inference::SceneMo
   settings.samples_per_pixel = o.spp;
   settings.max_bounces = o.bounces;
   settings.seed = o.seed;
+  // The truth's spheres are rendered by our renderer, sharp and clean, and
+  // the probe measures light: the camera match stays off on both sides.
+  CompositeOptions options;
+  options.match_camera = false;
   const auto composite_of = [&](const inference::SceneModel& scene) {
     const cv::Mat scene_photo = capture::srgb_linear_to_response_linear(view.photo_linear, scene.gamma);
-    const CompositeResult composite = composite_prop(scene_photo, scene, mesh, world->placement, settings);
+    const CompositeResult composite = composite_prop(scene_photo, scene, mesh, world->placement, settings, options);
     return clip01(capture::response_linear_to_srgb_linear(composite.composite_linear, scene.gamma));
   };
   const cv::Mat est = composite_of(estimate);

@@ -74,12 +74,13 @@ constexpr int kProfileHalfPx = 4;
 constexpr double kMonotoneTolerance = 0.03;  // of the step's height
 // ... and its step is at least this share of the brighter side.
 constexpr double kMinEdgeContrast = 0.2;
-constexpr int kMinBlurEdges = 30;
 // A photo's edges are its point spread or wider (soft shadows, shading,
 // defocus): the lower quartile of the edges' blurs reads the camera's.
 constexpr double kEdgeQuantile = 0.25;
 constexpr double kMaxBlurSigmaPx = 8.0, kBlurTableStepPx = 0.05;
 constexpr int kBlurTablePhases = 8;
+// Guards the table's divisions (its differences are of order 0.01-1).
+constexpr double kTinyDifference = 1e-12;
 
 int gaussian_ksize(double sigma) { return 2 * static_cast<int>(std::ceil(3.0 * sigma)) + 1; }
 
@@ -107,21 +108,20 @@ struct ReblurTable {
     const int n = 96, centre = n / 2;
     const int ksize = gaussian_ksize(sigma0);
     const cv::Mat kernel = cv::getGaussianKernel(ksize, sigma0, CV_64F);
-    for (double sigma = 0; sigma <= kMaxBlurSigmaPx + 1e-9; sigma += kBlurTableStepPx) {
+    const int entries = static_cast<int>(std::lround(kMaxBlurSigmaPx / kBlurTableStepPx)) + 1;
+    for (int entry = 0; entry < entries; ++entry) {
+      const double sigma = entry * kBlurTableStepPx;
       double sum = 0;
       for (int p = 0; p < kBlurTablePhases; ++p) {
         const double phase = centre + (p + 0.5) / kBlurTablePhases - 0.5;
         std::vector<double> v(n), w(n, 0.0);
-        for (int i = 0; i < n; ++i) {
-          // A unit step rising at `phase`: pixel i holds the share of it above the step.
-          v[i] = blurred_step_pixel(i, phase, sigma);
-        }
+        for (int i = 0; i < n; ++i) v[i] = blurred_step_pixel(i, phase, sigma);
         for (int i = 0; i < n; ++i)
           for (int k = 0; k < ksize; ++k) w[i] += kernel.at<double>(k) * v[std::clamp(i + k - ksize / 2, 0, n - 1)];
         int best = 1;
         for (int i = 1; i < n - 1; ++i)
           if (v[i + 1] - v[i - 1] > v[best + 1] - v[best - 1]) best = i;
-        sum += (v[best + 1] - v[best - 1]) / std::max(1e-12, w[best + 1] - w[best - 1]);
+        sum += (v[best + 1] - v[best - 1]) / std::max(kTinyDifference, w[best + 1] - w[best - 1]);
       }
       ratio.push_back(sum / kBlurTablePhases);
     }
@@ -131,7 +131,7 @@ struct ReblurTable {
     if (r >= ratio.front()) return 0.0;
     for (size_t i = 1; i < ratio.size(); ++i)
       if (r >= ratio[i]) {
-        const double t = (ratio[i - 1] - r) / std::max(1e-12, ratio[i - 1] - ratio[i]);
+        const double t = (ratio[i - 1] - r) / std::max(kTinyDifference, ratio[i - 1] - ratio[i]);
         return (static_cast<double>(i - 1) + t) * kBlurTableStepPx;
       }
     return kMaxBlurSigmaPx;
@@ -288,7 +288,7 @@ NoiseLevelFunction estimate_noise_level(const cv::Mat& display, const cv::Mat& m
   return nlf;
 }
 
-double estimate_edge_blur(const cv::Mat& linear, const cv::Mat& mask, int* edges_used) {
+double estimate_edge_blur(const cv::Mat& linear, const cv::Mat& mask, int* edges_used, int min_edges) {
   const cv::Mat y = luminance_of(linear);
   // Edges are found on the display-encoded luminance, where a step's
   // strength reads as a person sees it; they are measured on linear light.
@@ -299,7 +299,7 @@ double estimate_edge_blur(const cv::Mat& linear, const cv::Mat& mask, int* edges
   cv::Mat edges;
   cv::Canny(encoded, edges, 20, 50, 3, true);
   std::vector<double> sigmas = edge_blurs(y, edges, mask, kReblurSigmaPx);
-  if (static_cast<int>(sigmas.size()) < kMinBlurEdges) {
+  if (static_cast<int>(sigmas.size()) < std::max(1, min_edges)) {
     if (edges_used) *edges_used = 0;
     return 0.0;
   }
@@ -308,7 +308,7 @@ double estimate_edge_blur(const cv::Mat& linear, const cv::Mat& mask, int* edges
   if (sigma > 1.5 * kReblurSigmaPx) {
     const double sigma0 = std::round(std::min(sigma, 4.0) * 4.0) / 4.0;
     std::vector<double> again = edge_blurs(y, edges, mask, sigma0);
-    if (static_cast<int>(again.size()) >= kMinBlurEdges) sigmas = std::move(again);
+    if (static_cast<int>(again.size()) >= std::max(1, min_edges)) sigmas = std::move(again);
     sigma = quantile(sigmas, kEdgeQuantile);
   }
   if (edges_used) *edges_used = static_cast<int>(sigmas.size());
@@ -341,33 +341,64 @@ PhotoImaging estimate_photo_imaging(const cv::Mat& photo_srgb_linear) {
 }
 
 cv::Mat blur_change(const cv::Mat& photo_linear, const cv::Mat& composite_linear, const cv::Mat& coverage,
-                    double sigma_px) {
+                    double sigma_px, cv::Mat* blurred_coverage_out) {
   if (photo_linear.size() != composite_linear.size() || photo_linear.type() != CV_32FC3 ||
       composite_linear.type() != CV_32FC3 || coverage.size() != photo_linear.size() || coverage.type() != CV_32F)
     throw std::invalid_argument("blur_change: need CV_32FC3 photo and composite and a CV_32F coverage of one size");
   cv::Mat out = composite_linear.clone();
+  if (blurred_coverage_out) *blurred_coverage_out = coverage.clone();
   if (!(sigma_px > 0)) return out;
-  // The prop's layer over the photo: its own pixels premultiplied by their
-  // coverage plus the change it makes to the rest.
-  cv::Mat uncovered_here;
-  cv::merge(std::vector<cv::Mat>(3, 1.0f - coverage), uncovered_here);
-  const cv::Mat layer = composite_linear - photo_linear.mul(uncovered_here);
-  const cv::Rect changed = cv::boundingRect(nonzero(layer) | (coverage != 0));
+  // Where the prop or its change is, grown by the kernel's reach: the only
+  // pixels the blur can move.
+  cv::Mat difference, any_difference;
+  cv::absdiff(composite_linear, photo_linear, difference);
+  cv::transform(difference, any_difference, cv::Matx13f(1, 1, 1));
+  const cv::Rect changed = cv::boundingRect((any_difference != 0) | (coverage != 0));
   if (changed.empty()) return out;
   const int ksize = gaussian_ksize(sigma_px), reach = ksize / 2;
-  const cv::Rect window = (changed + cv::Size(2 * reach, 2 * reach) - cv::Point(reach, reach)) & cv::Rect({0, 0}, layer.size());
+  const cv::Rect window =
+      (changed + cv::Size(2 * reach, 2 * reach) - cv::Point(reach, reach)) & cv::Rect({0, 0}, photo_linear.size());
+  const cv::Mat photo = photo_linear(window), cover = coverage(window);
+  // The prop's layer over the photo: its own pixels premultiplied by their
+  // coverage plus the change it makes to the rest (zero beyond `changed`, so
+  // the window's replicated border adds nothing).
+  cv::Mat uncovered_here;
+  cv::merge(std::vector<cv::Mat>(3, 1.0f - cover), uncovered_here);
+  const cv::Mat layer = composite_linear(window) - photo.mul(uncovered_here);
   cv::Mat blurred_layer, blurred_coverage;
-  cv::GaussianBlur(layer(window), blurred_layer, {ksize, ksize}, sigma_px, sigma_px, cv::BORDER_REPLICATE);
-  cv::GaussianBlur(coverage(window), blurred_coverage, {ksize, ksize}, sigma_px, sigma_px, cv::BORDER_REPLICATE);
+  cv::GaussianBlur(layer, blurred_layer, {ksize, ksize}, sigma_px, sigma_px, cv::BORDER_REPLICATE);
+  cv::GaussianBlur(cover, blurred_coverage, {ksize, ksize}, sigma_px, sigma_px, cv::BORDER_REPLICATE);
   // The blurred layer over the photo, seen through the blurred coverage.
   cv::Mat uncovered;
   cv::merge(std::vector<cv::Mat>(3, 1.0f - blurred_coverage), uncovered);
-  cv::Mat region = photo_linear(window).mul(uncovered) + blurred_layer;
+  cv::Mat region = photo.mul(uncovered) + blurred_layer;
   region = cv::max(region, 0.0);
   // Pixels neither the blurred layer nor the blurred coverage reaches keep the photo's exact value.
   cv::Mat target = out(window);
   region.copyTo(target, nonzero(blurred_layer) | (blurred_coverage != 0));
+  if (blurred_coverage_out) blurred_coverage.copyTo((*blurred_coverage_out)(window));
   return out;
+}
+
+std::array<float, 3> region_noise_sigma(const cv::Mat& display, const cv::Mat& mask, int* pixels) {
+  if (display.type() != CV_32FC3 || mask.type() != CV_8U || mask.size() != display.size())
+    throw std::invalid_argument("region_noise_sigma: need CV_32FC3 display values and a CV_8U mask of its size");
+  std::array<float, 3> sigma{};
+  const int n = cv::countNonZero(mask);
+  if (pixels) *pixels = n;
+  if (n < kMinRegionNoisePixels) return sigma;
+  std::vector<cv::Mat> channels;
+  cv::split(display, channels);
+  for (int ch = 0; ch < 3; ++ch) {
+    const cv::Mat response = immerkaer_response(channels[ch]);
+    std::vector<double> magnitudes;
+    magnitudes.reserve(static_cast<size_t>(n));
+    for (int r = 0; r < display.rows; ++r)
+      for (int c = 0; c < display.cols; ++c)
+        if (mask.at<uint8_t>(r, c)) magnitudes.push_back(std::abs(response.at<float>(r, c)));
+    sigma[ch] = static_cast<float>(kMadToSigma * quantile(magnitudes, 0.5) / kImmerkaerGain);
+  }
+  return sigma;
 }
 
 cv::Mat add_matched_noise(const cv::Mat& display, const cv::Mat& coverage, const NoiseLevelFunction& photo_noise,
@@ -377,19 +408,7 @@ cv::Mat add_matched_noise(const cv::Mat& display, const cv::Mat& coverage, const
   // What the render already put on the prop: measured on its inside, away from the silhouette.
   cv::Mat inside = coverage >= 0.999f;
   cv::erode(inside, inside, cv::Mat(), {-1, -1}, 2);
-  std::array<float, 3> own{};
-  if (cv::countNonZero(inside) >= kNoiseBlockPx * kNoiseBlockPx) {
-    std::vector<cv::Mat> channels;
-    cv::split(display, channels);
-    for (int ch = 0; ch < 3; ++ch) {
-      const cv::Mat response = immerkaer_response(channels[ch]);
-      std::vector<double> magnitudes;
-      for (int r = 0; r < display.rows; ++r)
-        for (int c = 0; c < display.cols; ++c)
-          if (inside.at<uint8_t>(r, c)) magnitudes.push_back(std::abs(response.at<float>(r, c)));
-      own[ch] = static_cast<float>(kMadToSigma * quantile(magnitudes, 0.5) / kImmerkaerGain);
-    }
-  }
+  const std::array<float, 3> own = region_noise_sigma(display, inside);
   cv::Mat out = display.clone();
   double added_sum = 0;
   long added_pixels = 0;
@@ -437,12 +456,12 @@ cv::Mat match_camera(const cv::Mat& photo_linear, const cv::Mat& composite_linea
                   kMinMatchedBlurPx);
     blur.why = text;
   } else {
-    out = blur_change(photo_linear, out, prop_coverage, imaging.blur_sigma_px);
-    cv::GaussianBlur(prop_coverage, prop_coverage, {gaussian_ksize(imaging.blur_sigma_px), gaussian_ksize(imaging.blur_sigma_px)},
-                     imaging.blur_sigma_px, imaging.blur_sigma_px, cv::BORDER_REPLICATE);
+    cv::Mat blurred_coverage;
+    out = blur_change(photo_linear, out, prop_coverage, imaging.blur_sigma_px, &blurred_coverage);
+    prop_coverage = blurred_coverage;  // a new buffer: the caller's coverage stays as rendered
     rep.blur_sigma_px = imaging.blur_sigma_px;
     blur.applied = true;
-    std::snprintf(text, sizeof text, "photo edges blurred by sigma %.2f px (median of %d edge pixels)",
+    std::snprintf(text, sizeof text, "photo edges blurred by sigma %.2f px (lower quartile of %d edge pixels)",
                   imaging.blur_sigma_px, imaging.blur_edges);
     blur.why = text;
   }

@@ -41,6 +41,20 @@ class CompositeTest : public ::testing::Test {
     s.samples_per_pixel = spp;
     return composite_prop(shot_->photo_linear, scene, load_prop(prop), at_free_floor(height), s);
   }
+  // A white diffuse cube composited into `photo` as inferred: the mean of
+  // its fully covered pixels.
+  static cv::Scalar white_cube_on(const cv::Mat& photo) {
+    const inference::SceneModel scene = inference::infer_scene(photo);
+    MaterialOverride white;
+    white.type = "diffuse";
+    white.albedo = Eigen::Vector3f(0.8f, 0.8f, 0.8f);
+    render::RenderSettings s;
+    s.samples_per_pixel = 16;
+    const CompositeResult r = composite_prop(photo, scene, load_prop("cube", white), at_free_floor(0.4), s);
+    const cv::Mat on_prop = r.render.coverage > 0.99f;
+    EXPECT_GT(cv::countNonZero(on_prop), 50);
+    return cv::mean(r.composite_linear, on_prop);
+  }
   static SyntheticShot* shot_;
 };
 SyntheticShot* CompositeTest::shot_ = nullptr;
@@ -109,16 +123,7 @@ TEST_F(CompositeTest, ANeutralPropInANeutralPhotoStaysNeutral) {
   cv::Mat grey_photo;
   cv::transform(shot_->photo_linear, grey_photo, cv::Matx33f(0.2126f, 0.7152f, 0.0722f, 0.2126f, 0.7152f, 0.0722f,
                                                               0.2126f, 0.7152f, 0.0722f));
-  const inference::SceneModel scene = inference::infer_scene(grey_photo);
-  MaterialOverride white;
-  white.type = "diffuse";
-  white.albedo = Eigen::Vector3f(0.8f, 0.8f, 0.8f);
-  render::RenderSettings s;
-  s.samples_per_pixel = 16;
-  const CompositeResult r = composite_prop(grey_photo, scene, load_prop("cube", white), at_free_floor(0.4), s);
-  const cv::Mat on_prop = r.render.coverage > 0.99f;
-  ASSERT_GT(cv::countNonZero(on_prop), 50);
-  const cv::Scalar mean = cv::mean(r.composite_linear, on_prop);
+  const cv::Scalar mean = white_cube_on(grey_photo);
   const double grey = (mean[0] + mean[1] + mean[2]) / 3.0;
   ASSERT_GT(grey, 0.0);
   for (int c = 0; c < 3; ++c) EXPECT_NEAR(mean[c] / grey, 1.0, 0.02) << "channel " << c;
@@ -130,16 +135,7 @@ TEST_F(CompositeTest, AWhitePropInAWarmPhotoIsNeverBluerThanWhite) {
   cv::Mat warm;
   cv::transform(shot_->photo_linear, warm, cv::Matx33f(0.2126f, 0.7152f, 0.0722f, 0.2126f * 0.8f, 0.7152f * 0.8f,
                                                         0.0722f * 0.8f, 0.2126f * 0.55f, 0.7152f * 0.55f, 0.0722f * 0.55f));
-  const inference::SceneModel scene = inference::infer_scene(warm);
-  MaterialOverride white;
-  white.type = "diffuse";
-  white.albedo = Eigen::Vector3f(0.8f, 0.8f, 0.8f);
-  render::RenderSettings s;
-  s.samples_per_pixel = 16;
-  const CompositeResult r = composite_prop(warm, scene, load_prop("cube", white), at_free_floor(0.4), s);
-  const cv::Mat on_prop = r.render.coverage > 0.99f;
-  ASSERT_GT(cv::countNonZero(on_prop), 50);
-  const cv::Scalar mean = cv::mean(r.composite_linear, on_prop);
+  const cv::Scalar mean = white_cube_on(warm);
   EXPECT_GE(mean[0], 0.99 * mean[1]) << "red below green: bluer than white";
   EXPECT_GE(mean[1], 0.99 * mean[2]) << "green below blue: bluer than white";
 }

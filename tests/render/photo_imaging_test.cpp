@@ -97,6 +97,20 @@ TEST(PhotoImaging, TheNoiseOfAFlatNoisyImageIsItsSigma) {
   for (int ch = 0; ch < 3; ++ch) EXPECT_NEAR(nlf.at(ch, 0.5f), 0.02, 0.02 * 0.04) << "channel " << ch;
 }
 
+TEST(PhotoImaging, TheNoiseOfASmallRegionIsItsSigma) {
+  cv::Mat flat(64, 64, CV_32FC3, cv::Scalar(0.4, 0.5, 0.6)), noise(64, 64, CV_32FC3);
+  cv::randn(noise, 0.0, 0.01);
+  cv::Mat region = cv::Mat::zeros(64, 64, CV_8U);
+  region(cv::Rect(20, 20, 16, 16)).setTo(255);
+  int pixels = 0;
+  const std::array<float, 3> sigma = region_noise_sigma(flat + noise, region, &pixels);
+  EXPECT_EQ(pixels, 256);
+  for (int ch = 0; ch < 3; ++ch) EXPECT_NEAR(sigma[ch], 0.01, 0.002) << "channel " << ch;
+  region.setTo(0);
+  region(cv::Rect(0, 0, 4, 4)).setTo(255);
+  EXPECT_EQ(region_noise_sigma(flat + noise, region)[1], 0.0f) << "too small to tell";
+}
+
 TEST(PhotoImaging, NoiseOfADegradedPhotoIsFoundWithinTwentyPercent) {
   for (const double sigma_levels : {2.0, 5.0, 10.0}) {
     const double b = std::pow(sigma_levels / 255.0, 2);

@@ -58,7 +58,17 @@ NoiseLevelFunction estimate_noise_level(const cv::Mat& display, const cv::Mat& m
 // the edges to where it is non-zero. Returns the blur sigma in pixels of the
 // isolated step edges found, their lower quartile (a photo's edges are its
 // point spread or wider); 0 when `edges_used` is 0.
-double estimate_edge_blur(const cv::Mat& linear, const cv::Mat& mask = {}, int* edges_used = nullptr);
+// A photo's blur needs this many edge pixels to be told.
+constexpr int kMinBlurEdges = 30;
+double estimate_edge_blur(const cv::Mat& linear, const cv::Mat& mask = {}, int* edges_used = nullptr,
+                          int min_edges = kMinBlurEdges);
+
+// The noise of one region (CV_8U mask), per channel in display values: the
+// median absolute Immerkaer response, for a region too small for the level
+// function's blocks (a prop's inside). Zero below kMinRegionNoisePixels;
+// `pixels` gets the region's size.
+constexpr int kMinRegionNoisePixels = 64;
+std::array<float, 3> region_noise_sigma(const cv::Mat& display, const cv::Mat& mask, int* pixels = nullptr);
 
 // Both, on a photo decoded with the sRGB curve (capture::load_photo_linear).
 PhotoImaging estimate_photo_imaging(const cv::Mat& photo_srgb_linear);
@@ -90,8 +100,9 @@ struct CameraMatchReport {
 // coverage, so that the photo's pixels hidden by the prop do not show
 // through. Linear images in one space; pixels farther than the kernel's
 // reach from the prop and its change stay bit-identical.
+// `blurred_coverage` (optional) gets the coverage as blurred.
 cv::Mat blur_change(const cv::Mat& photo_linear, const cv::Mat& composite_linear, const cv::Mat& coverage,
-                    double sigma_px);
+                    double sigma_px, cv::Mat* blurred_coverage = nullptr);
 
 // Noise of the photo's level function, less what the prop's pixels already
 // carry, added to them (weighted by `coverage`, CV_32F in [0, 1]); `display`
