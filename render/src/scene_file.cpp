@@ -55,7 +55,8 @@ class Reader {
   // Refuses keys other than `allowed` (keys starting with '_' are comments).
   void only_fields(const json& object, const std::string& field, std::initializer_list<const char*> allowed) const {
     if (!object.is_object()) fail(field, std::string("expected an object, got ") + object.type_name());
-    for (const auto& [key, value] : object.items()) {
+    for (const auto& item : object.items()) {
+      const std::string& key = item.key();  // a plain name: clang 14's lambdas cannot capture structured bindings
       if (!key.empty() && key[0] == '_') continue;
       if (std::none_of(allowed.begin(), allowed.end(), [&](const char* a) { return key == a; }))
         fail(join(field, key), "unknown field");
