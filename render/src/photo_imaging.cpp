@@ -205,6 +205,29 @@ std::vector<double> edge_blurs(const cv::Mat& y, const cv::Mat& edges, const cv:
   return sigmas;
 }
 
+// Display values (the sRGB curve) of linear sRGB clamped to [0, 1], and back.
+cv::Mat to_display(const cv::Mat& srgb_linear) {
+  cv::Mat display(srgb_linear.size(), CV_32FC3);
+  for (int r = 0; r < display.rows; ++r) {
+    const auto* in = srgb_linear.ptr<cv::Vec3f>(r);
+    auto* o = display.ptr<cv::Vec3f>(r);
+    for (int c = 0; c < display.cols; ++c)
+      for (int k = 0; k < 3; ++k) o[c][k] = capture::linear_to_srgb(std::clamp(in[c][k], 0.0f, 1.0f));
+  }
+  return display;
+}
+
+cv::Mat to_srgb_linear(const cv::Mat& display) {
+  cv::Mat linear(display.size(), CV_32FC3);
+  for (int r = 0; r < linear.rows; ++r) {
+    const auto* in = display.ptr<cv::Vec3f>(r);
+    auto* o = linear.ptr<cv::Vec3f>(r);
+    for (int c = 0; c < linear.cols; ++c)
+      for (int k = 0; k < 3; ++k) o[c][k] = capture::srgb_to_linear(in[c][k]);
+  }
+  return linear;
+}
+
 // CV_8U: 255 where any channel is non-zero.
 cv::Mat nonzero(const cv::Mat& image) {
   std::vector<cv::Mat> channels;
@@ -238,26 +261,34 @@ NoiseLevelFunction estimate_noise_level(const cv::Mat& display, const cv::Mat& m
   NoiseLevelFunction nlf;
   int used = 0;
   std::array<bool, kNoiseBins> any_bin{};
+  // Each block's mean value, mean squared response, clipped share and share
+  // inside the mask, by area averaging; blocks start one pixel in (the
+  // operator's border rows are reflections).
+  const int blocks_x = (display.cols - 2) / kNoiseBlockPx, blocks_y = (display.rows - 2) / kNoiseBlockPx;
+  if (blocks_x < 1 || blocks_y < 1) {
+    if (blocks_used) *blocks_used = 0;
+    return nlf;
+  }
+  const cv::Rect area(1, 1, blocks_x * kNoiseBlockPx, blocks_y * kNoiseBlockPx);
+  const auto block_means = [&](const cv::Mat& m) {
+    cv::Mat out;
+    cv::resize(m(area), out, {blocks_x, blocks_y}, 0, 0, cv::INTER_AREA);
+    return out;
+  };
+  cv::Mat inside_share;
+  if (!mask.empty()) {
+    cv::Mat inside;
+    cv::Mat(mask != 0).convertTo(inside, CV_32F, 1.0 / 255.0);
+    inside_share = block_means(inside);
+  }
   for (int ch = 0; ch < 3; ++ch) {
     const cv::Mat response = immerkaer_response(channels[ch]);
     std::array<std::vector<double>, kNoiseBins> per_bin;
-    // Each block's mean value, mean squared response, clipped share and
-    // share inside the mask, by area averaging; blocks start one pixel in
-    // (the operator's border rows are reflections).
-    const int blocks_x = (display.cols - 2) / kNoiseBlockPx, blocks_y = (display.rows - 2) / kNoiseBlockPx;
-    if (blocks_x < 1 || blocks_y < 1) continue;
-    const cv::Rect area(1, 1, blocks_x * kNoiseBlockPx, blocks_y * kNoiseBlockPx);
-    const auto block_means = [&](const cv::Mat& m) {
-      cv::Mat out;
-      cv::resize(m(area), out, {blocks_x, blocks_y}, 0, 0, cv::INTER_AREA);
-      return out;
-    };
-    cv::Mat clipped, inside;
+    cv::Mat clipped;
     const cv::Mat clipped_8u = (channels[ch] <= kClipMargin) | (channels[ch] >= 1.0f - kClipMargin);
     clipped_8u.convertTo(clipped, CV_32F, 1.0 / 255.0);
-    if (!mask.empty()) cv::Mat(mask != 0).convertTo(inside, CV_32F, 1.0 / 255.0);
     const cv::Mat mean = block_means(channels[ch]), energy = block_means(response.mul(response)),
-                  clipped_share = block_means(clipped), inside_share = mask.empty() ? cv::Mat() : block_means(inside);
+                  clipped_share = block_means(clipped);
     for (int by = 0; by < blocks_y; ++by)
       for (int bx = 0; bx < blocks_x; ++bx) {
         if (clipped_share.at<float>(by, bx) > 0) continue;
@@ -320,21 +351,13 @@ PhotoImaging estimate_photo_imaging(const cv::Mat& photo_srgb_linear) {
   if (photo_srgb_linear.type() != CV_32FC3 || photo_srgb_linear.empty())
     throw std::invalid_argument("estimate_photo_imaging: need a CV_32FC3 linear photo");
   PhotoImaging out;
-  cv::Mat display(photo_srgb_linear.size(), CV_32FC3);
-  for (int r = 0; r < display.rows; ++r) {
-    const auto* in = photo_srgb_linear.ptr<cv::Vec3f>(r);
-    auto* o = display.ptr<cv::Vec3f>(r);
-    for (int c = 0; c < display.cols; ++c)
-      for (int k = 0; k < 3; ++k) {
-        const float v = std::isfinite(in[c][k]) ? std::clamp(in[c][k], 0.0f, 1.0f) : 0.0f;
-        o[c][k] = capture::linear_to_srgb(v);
-      }
-  }
-  out.noise = estimate_noise_level(display, {}, &out.noise_blocks);
+  // Non-finite values as black, the rest within [0, 1]: both estimates read this.
+  cv::Mat linear = photo_srgb_linear.clone();
+  cv::patchNaNs(linear, 0.0);
+  linear = cv::min(cv::max(linear, 0.0), 1.0);
+  out.noise = estimate_noise_level(to_display(linear), {}, &out.noise_blocks);
   out.noise_measured = out.noise_blocks > 0;
-  cv::Mat linear;
-  cv::patchNaNs(linear = photo_srgb_linear.clone(), 0.0);
-  out.blur_sigma_px = estimate_edge_blur(cv::min(cv::max(linear, 0.0), 1.0), {}, &out.blur_edges);
+  out.blur_sigma_px = estimate_edge_blur(linear, {}, &out.blur_edges);
   out.blur_measured = out.blur_edges > 0;
   out.seconds = std::chrono::duration<double>(Clock::now() - start).count();
   return out;
@@ -350,10 +373,7 @@ cv::Mat blur_change(const cv::Mat& photo_linear, const cv::Mat& composite_linear
   if (!(sigma_px > 0)) return out;
   // Where the prop or its change is, grown by the kernel's reach: the only
   // pixels the blur can move.
-  cv::Mat difference, any_difference;
-  cv::absdiff(composite_linear, photo_linear, difference);
-  cv::transform(difference, any_difference, cv::Matx13f(1, 1, 1));
-  const cv::Rect changed = cv::boundingRect((any_difference != 0) | (coverage != 0));
+  const cv::Rect changed = cv::boundingRect(nonzero(composite_linear - photo_linear) | (coverage != 0));
   if (changed.empty()) return out;
   const int ksize = gaussian_ksize(sigma_px), reach = ksize / 2;
   const cv::Rect window =
@@ -484,18 +504,9 @@ cv::Mat match_camera(const cv::Mat& photo_linear, const cv::Mat& composite_linea
     // on its pixels only, and back; every other pixel keeps its exact value.
     cv::Rect roi = cv::boundingRect(prop_coverage > 0);
     roi = (roi + cv::Size(8, 8) - cv::Point(4, 4)) & cv::Rect({0, 0}, out.size());
-    const cv::Mat srgb_linear = capture::response_linear_to_srgb_linear(out(roi), response_gamma);
-    cv::Mat display(srgb_linear.size(), CV_32FC3);
-    for (int r = 0; r < display.rows; ++r)
-      for (int c = 0; c < display.cols; ++c)
-        for (int k = 0; k < 3; ++k)
-          display.at<cv::Vec3f>(r, c)[k] = capture::linear_to_srgb(std::clamp(srgb_linear.at<cv::Vec3f>(r, c)[k], 0.0f, 1.0f));
+    const cv::Mat display = to_display(capture::response_linear_to_srgb_linear(out(roi), response_gamma));
     const cv::Mat noisy = add_matched_noise(display, prop_coverage(roi), imaging.noise, options.seed, &rep);
-    cv::Mat noisy_linear(noisy.size(), CV_32FC3);
-    for (int r = 0; r < noisy.rows; ++r)
-      for (int c = 0; c < noisy.cols; ++c)
-        for (int k = 0; k < 3; ++k) noisy_linear.at<cv::Vec3f>(r, c)[k] = capture::srgb_to_linear(noisy.at<cv::Vec3f>(r, c)[k]);
-    const cv::Mat matched = capture::srgb_linear_to_response_linear(noisy_linear, response_gamma);
+    const cv::Mat matched = capture::srgb_linear_to_response_linear(to_srgb_linear(noisy), response_gamma);
     out = out.clone();
     cv::Mat target = out(roi);
     matched.copyTo(target, prop_coverage(roi) > 0);
