@@ -526,7 +526,7 @@ TEST(ScreensAll, BigShrinksAverageInsteadOfAliasing) {
     view.image = image;
     const Canvas canvas = draw(view);
     const Rect area = screen_image_area(canvas.size(), view);
-    const auto near_grey = [grey](Rgb p) { return std::abs(p.r - grey) <= 3; };
+    const auto near_grey = [level = grey](Rgb p) { return std::abs(p.r - level) <= 3; };
     EXPECT_EQ(count_pixels(canvas, area, near_grey), area_of(area)) << "grey " << grey;
   }
 }
