@@ -183,46 +183,57 @@ const DisplayEncoder& display_encoder() {
 
 float sanitised(float v) { return std::isfinite(v) ? std::clamp(v, 0.0f, 1.0f) : 0.0f; }
 
-// What both estimates read of a linear photo, made in one pass (each
-// full-frame temporary costs its page faults).
-struct PhotoPlanes {
-  cv::Mat display;            // CV_32FC3, the sRGB curve's values (kPhotoWithDisplay only)
-  cv::Mat luminance;          // CV_32F, linear
-  cv::Mat encoded_luminance;  // CV_8U, the luminance through the sRGB curve, for edge finding
-};
-
-enum class PlanesOf {
-  kPhotoWithDisplay,  // a photo: non-finite values as black, the rest within [0, 1]
-  kImageAsGiven,      // a render's edges: its luminance as it is (above 1 too), negative or non-finite as 0
-};
-
-PhotoPlanes photo_planes(const cv::Mat& linear, PlanesOf what) {
+// The luminance through the sRGB curve in 8 bits, where edges are found.
+cv::Mat encoded_luminance_of(const cv::Mat& luminance) {
   const DisplayEncoder& encode = display_encoder();
-  const bool photo = what == PlanesOf::kPhotoWithDisplay;
-  PhotoPlanes planes;
-  if (photo) planes.display.create(linear.size(), CV_32FC3);
-  planes.luminance.create(linear.size(), CV_32F);
-  planes.encoded_luminance.create(linear.size(), CV_8U);
-  for (int r = 0; r < linear.rows; ++r) {
-    float* y = planes.luminance.ptr<float>(r);
-    uint8_t* e = planes.encoded_luminance.ptr<uint8_t>(r);
-    if (photo) {
-      const auto* in = linear.ptr<cv::Vec3f>(r);
-      auto* d = planes.display.ptr<cv::Vec3f>(r);
-      for (int c = 0; c < linear.cols; ++c) {
-        const cv::Vec3f v{sanitised(in[c][0]), sanitised(in[c][1]), sanitised(in[c][2])};
-        d[c] = {encode(v[0]), encode(v[1]), encode(v[2])};
-        y[c] = std::min(1.0f, detail::luminance(v));
-      }
-    } else {
-      for (int c = 0; c < linear.cols; ++c) {
-        const float lum = linear.type() == CV_32F ? linear.ptr<float>(r)[c] : detail::luminance(linear.ptr<cv::Vec3f>(r)[c]);
-        y[c] = std::isfinite(lum) ? std::max(0.0f, lum) : 0.0f;
-      }
-    }
-    for (int c = 0; c < linear.cols; ++c) e[c] = cv::saturate_cast<uint8_t>(255.0f * encode(std::min(1.0f, y[c])));
+  cv::Mat encoded(luminance.size(), CV_8U);
+  for (int r = 0; r < luminance.rows; ++r) {
+    const float* y = luminance.ptr<float>(r);
+    uint8_t* e = encoded.ptr<uint8_t>(r);
+    for (int c = 0; c < luminance.cols; ++c) e[c] = cv::saturate_cast<uint8_t>(255.0f * encode(std::min(1.0f, y[c])));
   }
+  return encoded;
+}
+
+// What both estimates read of a linear photo, made in one pass (each
+// full-frame temporary costs its page faults): non-finite values as black,
+// the rest within [0, 1].
+struct PhotoPlanes {
+  cv::Mat display;            // CV_32FC3, the sRGB curve's values
+  cv::Mat luminance;          // CV_32F, linear
+  cv::Mat encoded_luminance;  // CV_8U, encoded_luminance_of(luminance)
+};
+
+PhotoPlanes photo_planes(const cv::Mat& linear) {
+  const DisplayEncoder& encode = display_encoder();
+  PhotoPlanes planes{cv::Mat(linear.size(), CV_32FC3), cv::Mat(linear.size(), CV_32F), {}};
+  for (int r = 0; r < linear.rows; ++r) {
+    const auto* in = linear.ptr<cv::Vec3f>(r);
+    auto* d = planes.display.ptr<cv::Vec3f>(r);
+    float* y = planes.luminance.ptr<float>(r);
+    for (int c = 0; c < linear.cols; ++c) {
+      const cv::Vec3f v{sanitised(in[c][0]), sanitised(in[c][1]), sanitised(in[c][2])};
+      d[c] = {encode(v[0]), encode(v[1]), encode(v[2])};
+      y[c] = std::min(1.0f, detail::luminance(v));
+    }
+  }
+  planes.encoded_luminance = encoded_luminance_of(planes.luminance);
   return planes;
+}
+
+// The linear luminance of an image as it is (a render's, above 1 too),
+// negative or non-finite values as 0.
+cv::Mat luminance_as_given(const cv::Mat& linear) {
+  cv::Mat y(linear.size(), CV_32F);
+  for (int r = 0; r < linear.rows; ++r) {
+    float* out = y.ptr<float>(r);
+    for (int c = 0; c < linear.cols; ++c) {
+      const float lum =
+          linear.type() == CV_32F ? linear.ptr<float>(r)[c] : detail::luminance(linear.ptr<cv::Vec3f>(r)[c]);
+      out[c] = std::isfinite(lum) ? std::max(0.0f, lum) : 0.0f;
+    }
+  }
+  return y;
 }
 
 float bilinear(const cv::Mat& image, float x, float y) {
@@ -301,25 +312,29 @@ cv::Mat to_srgb_linear(const cv::Mat& display) {
   return linear;
 }
 
-// The bounding box of the pixels where `composite` differs from `photo` or
-// `coverage` is non-zero (empty when none); with no composite, of where
-// `coverage` is positive. No full-frame temporaries.
-cv::Rect changed_bounds(const cv::Mat& photo, const cv::Mat& composite, const cv::Mat& coverage) {
-  int x0 = coverage.cols, y0 = coverage.rows, x1 = -1, y1 = -1;
-  for (int r = 0; r < coverage.rows; ++r) {
-    const auto* p = composite.empty() ? nullptr : photo.ptr<cv::Vec3f>(r);
-    const auto* c = composite.empty() ? nullptr : composite.ptr<cv::Vec3f>(r);
-    const float* m = coverage.ptr<float>(r);
-    for (int x = 0; x < coverage.cols; ++x) {
-      const bool counts = c ? (m[x] != 0 || c[x] != p[x]) : m[x] > 0;
-      if (!counts) continue;
+// The bounding box of the pixels of `size` where counts(row, column) holds
+// (empty when none), without a full-frame mask.
+template <class Counts>
+cv::Rect bounds_where(cv::Size size, Counts counts) {
+  int x0 = size.width, y0 = size.height, x1 = -1, y1 = -1;
+  for (int r = 0; r < size.height; ++r)
+    for (int x = 0; x < size.width; ++x) {
+      if (!counts(r, x)) continue;
       x0 = std::min(x0, x), x1 = std::max(x1, x), y0 = std::min(y0, r), y1 = std::max(y1, r);
     }
-  }
   return x1 < 0 ? cv::Rect() : cv::Rect(x0, y0, x1 - x0 + 1, y1 - y0 + 1);
 }
 
-cv::Rect covered_bounds(const cv::Mat& coverage) { return changed_bounds({}, {}, coverage); }
+// Where `composite` differs from `photo` or `coverage` is non-zero.
+cv::Rect changed_bounds(const cv::Mat& photo, const cv::Mat& composite, const cv::Mat& coverage) {
+  return bounds_where(coverage.size(), [&](int r, int x) {
+    return coverage.ptr<float>(r)[x] != 0 || composite.ptr<cv::Vec3f>(r)[x] != photo.ptr<cv::Vec3f>(r)[x];
+  });
+}
+
+cv::Rect covered_bounds(const cv::Mat& coverage) {
+  return bounds_where(coverage.size(), [&](int r, int x) { return coverage.ptr<float>(r)[x] > 0; });
+}
 
 }  // namespace
 
@@ -430,8 +445,8 @@ double edge_blur_of(const cv::Mat& y, const cv::Mat& encoded, const cv::Mat& mas
 double estimate_edge_blur(const cv::Mat& linear, const cv::Mat& mask, int* edges_used, int min_edges) {
   if (linear.type() != CV_32F && linear.type() != CV_32FC3)
     throw std::invalid_argument("estimate_edge_blur: need CV_32F or CV_32FC3");
-  const PhotoPlanes planes = photo_planes(linear, PlanesOf::kImageAsGiven);
-  return edge_blur_of(planes.luminance, planes.encoded_luminance, mask, edges_used, min_edges);
+  const cv::Mat y = luminance_as_given(linear);
+  return edge_blur_of(y, encoded_luminance_of(y), mask, edges_used, min_edges);
 }
 
 PhotoImaging estimate_photo_imaging(const cv::Mat& photo_srgb_linear) {
@@ -439,7 +454,7 @@ PhotoImaging estimate_photo_imaging(const cv::Mat& photo_srgb_linear) {
   if (photo_srgb_linear.type() != CV_32FC3 || photo_srgb_linear.empty())
     throw std::invalid_argument("estimate_photo_imaging: need a CV_32FC3 linear photo");
   PhotoImaging out;
-  const PhotoPlanes planes = photo_planes(photo_srgb_linear, PlanesOf::kPhotoWithDisplay);
+  const PhotoPlanes planes = photo_planes(photo_srgb_linear);
   out.noise = estimate_noise_level(planes.display, {}, &out.noise_blocks);
   out.noise_measured = out.noise_blocks > 0;
   out.blur_sigma_px = edge_blur_of(planes.luminance, planes.encoded_luminance, {}, &out.blur_edges, kMinBlurEdges);
