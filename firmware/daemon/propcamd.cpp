@@ -13,6 +13,8 @@
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
 
+#include "logging.h"
+
 #include <algorithm>
 #include <chrono>
 #include <cstdint>
@@ -51,6 +53,10 @@ std::string default_camera(const std::vector<std::string>& recordings) {
 
 int main(int argc, char** argv) {
   CLI::App app{"propcamd: the PropCam capture daemon"};
+  app.set_version_flag("--version", std::string("propcamd ") + PROPCAM_VERSION);
+  bool quiet = false, verbose = false;
+  app.add_flag("-q,--quiet", quiet, "Warnings and errors only");
+  app.add_flag("-v,--verbose", verbose, "Debug messages too");
   CaptureServerOptions options;
   std::string format = "YUYV";
   std::vector<std::string> recordings;
@@ -62,6 +68,9 @@ int main(int argc, char** argv) {
   app.add_option("--fps", options.stream.fps, "Viewfinder frame rate (0: the camera's default)")->capture_default_str();
   app.add_option("--recordings", recordings, "Folders of replay recordings to list as cameras");
   CLI11_PARSE(app, argc, argv);
+  propcam::firmware::set_up_logging(
+      "propcamd", quiet ? propcam::firmware::Verbosity::Quiet
+                        : verbose ? propcam::firmware::Verbosity::Verbose : propcam::firmware::Verbosity::Normal);
 
   const auto pixel_format = parse_format(format);
   if (!pixel_format) {

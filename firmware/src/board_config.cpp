@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "propcam/capture/frame.h"
+#include "propcam/inference/data_dir.h"
 
 namespace propcam::firmware {
 namespace fs = std::filesystem;
@@ -476,6 +477,29 @@ BoardConfig load_board(const fs::path& board_root, const std::string& name) {
   if (std::find(boards.begin(), boards.end(), name) == boards.end())
     throw BoardConfigError(board_root, "", "no board \"" + name + "\" (boards: " + (boards.empty() ? "none" : join(boards)) + ")");
   return load_board_file(file);
+}
+
+std::vector<fs::path> installed_board_roots() {
+  return {inference::config_dir() / "boards", inference::data_dir() / "board"};
+}
+
+BoardConfig load_board(const std::vector<fs::path>& board_roots, const std::string& name) {
+  if (!valid_board_name(name))
+    throw BoardConfigError(board_roots.empty() ? fs::path{} : board_roots.back(), "",
+                           "\"" + name + "\" is not a board name (lower-case letters, digits, - and _)");
+  std::vector<std::string> all;
+  std::string roots;
+  for (const fs::path& root : board_roots) {
+    const auto boards = list_boards(root);
+    if (std::find(boards.begin(), boards.end(), name) != boards.end()) return load_board_file(root / name / "board.json");
+    all.insert(all.end(), boards.begin(), boards.end());
+    roots += (roots.empty() ? "" : ", ") + root.string();
+  }
+  std::sort(all.begin(), all.end());
+  all.erase(std::unique(all.begin(), all.end()), all.end());
+  throw BoardConfigError(board_roots.empty() ? fs::path{} : board_roots.back(), "",
+                         "no board \"" + name + "\" in " + (roots.empty() ? "no folder" : roots) +
+                             " (boards: " + (all.empty() ? "none" : join(all)) + ")");
 }
 
 }  // namespace propcam::firmware

@@ -18,6 +18,7 @@
 #include "propcam/capture/pixel_format.h"
 #include "propcam/capture/recording.h"
 #include "propcam/capture/replay_source.h"
+#include "propcam/inference/data_dir.h"
 
 namespace propcam::firmware {
 namespace {
@@ -44,18 +45,24 @@ std::vector<std::string> recordings_or_bundled(const std::vector<std::string>& d
 }
 
 void add_camera_choice(CLI::App& cmd, CameraChoice& c) {
-  cmd.add_option("--camera", c.camera, "Camera id from `propcam cameras` (default: the first one)");
+  cmd.add_option("--camera", c.camera, "Camera id from `propcam cameras` (default: the first attached one)");
   cmd.add_option("--format", c.format, "Pixel format: YUYV, UYVY, NV12, MJPEG, RGB24, BGR24, GREY");
   cmd.add_option("--size", c.size, "Viewfinder size WxH");
   cmd.add_option("--fps", c.fps, "Frame rate")->check(CLI::NonNegativeNumber);
-  cmd.add_option("--recordings", c.recordings, "Folders of recordings to pick the default camera from");
+  cmd.add_option("--recordings", c.recordings, "Folders of recordings the default camera may be taken from");
 }
 
+// The named camera, else the first attached one (libcamera, V4L2); a
+// recording only when --recordings names where to look. With no camera
+// attached a shot is an error, never the bundled recording taken silently.
 std::string default_camera(const CameraChoice& c) {
   if (!c.camera.empty()) return c.camera;
-  for (const auto& info : capture::list_cameras(recordings_or_bundled(c.recordings)))
+  for (const auto& info : capture::list_cameras(c.recordings))
     if (!info.formats.empty()) return info.id;
-  throw std::runtime_error("no camera found (propcam cameras lists what is there)");
+  if (!c.recordings.empty())
+    throw std::runtime_error("no camera attached and no recording in the --recordings folders");
+  throw std::runtime_error("no camera attached (libcamera and V4L2 found none); name one with --camera "
+                           "(a recording: --camera replay:DIR, or --recordings DIR; propcam cameras lists them)");
 }
 
 // The camera's stream as asked, or as the camera adjusted it (said on stderr).
@@ -133,7 +140,7 @@ json daemon_run_json(const std::string& pacing, const capture::DaemonBenchResult
 
 std::string bundled_recordings_dir() {
   if (const char* env = std::getenv("PROPCAM_RECORDINGS")) return env;
-  return std::string(PROPCAM_SOURCE_DIR) + "/board/virtual/recordings";
+  return (inference::data_dir() / "board" / "virtual" / "recordings").string();
 }
 
 CLI::App* add_cameras_command(CLI::App& app, CamerasArgs& a) {

@@ -17,13 +17,13 @@
 #include "bench_geometry.h"
 #include "bench_lighting.h"
 #include "bench_worlds.h"
-#include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
 #include "capture_commands.h"
 #include "export_commands.h"
 #include "run_command.h"
 #include "light_training.h"
+#include "logging.h"
 #include "bench_transfer.h"
 #include "bench_scene_class.h"
 #include "ibl_training.h"
@@ -32,6 +32,7 @@
 #include "compositor.h"
 #include "progress.h"
 #include "propcam/capture/image_file.h"
+#include "propcam/inference/data_dir.h"
 #include "propcam/inference/ibl_library.h"
 #include "propcam/inference/infer.h"
 #include "propcam/render/depth_of_field.h"
@@ -74,10 +75,14 @@ json reports_json(const inference::SceneModel& scene) {
   return out;
 }
 
+// -q: warnings and errors only (unusable stages, failures).
+bool g_quiet = false;
+
 void print_reports(const inference::SceneModel& scene) {
   for (const auto& r : scene.reports)
-    std::fprintf(stderr, "  %-18s %-6s %7.3fs  %s\n", r.stage.c_str(), r.usable ? "ok" : "UNUSABLE", r.seconds,
-                 r.why.c_str());
+    if (!g_quiet || !r.usable)
+      std::fprintf(stderr, "  %-18s %-6s %7.3fs  %s\n", r.stage.c_str(), r.usable ? "ok" : "UNUSABLE", r.seconds,
+                   r.why.c_str());
 }
 
 // A calibrated lens (the board's calibration): its focal length in pixels at
@@ -337,8 +342,9 @@ int cmd_composite(const CompositeArgs& a) {
                   {"total_seconds", progress.elapsed()}};
   if (a.json_out) std::cout << summary.dump(2) << std::endl;
   else {
-    std::fprintf(stderr, "render %.2fs, %.1f Mrays, %.0f%% of traced samples untouched by the prop (no second path)\n",
-                 st.seconds, st.rays / 1e6, 100.0 * skipped);
+    if (!g_quiet)
+      std::fprintf(stderr, "render %.2fs, %.1f Mrays, %.0f%% of traced samples untouched by the prop (no second path)\n",
+                   st.seconds, st.rays / 1e6, 100.0 * skipped);
     if (a.explain) {
       print_render_plan(plan);
       if (result.camera_match.steps.empty()) std::fprintf(stderr, "camera: match off (--no-camera-match)\n");
@@ -565,13 +571,30 @@ int cmd_render(const RenderArgs& a) {
   return 0;
 }
 
+// Why a command failed: on stderr for a person, at the journal's error
+// priority under systemd (where stderr would reach it as plain info).
+void report_failure(const std::string& message) {
+  if (stderr_is_journal())
+    spdlog::error("{}", message);
+  else
+    std::cerr << message << std::endl;
+}
+
 }  // namespace
 
 int run_cli(int argc, char** argv) {
-  // Logs go to stderr (the journal under systemd); stdout is for results and --json.
-  spdlog::set_default_logger(spdlog::stderr_color_mt("propcam"));
   CLI::App app{"PropCam: infer a scene from one photo and composite 3D props into it"};
   app.require_subcommand(1);
+  app.set_version_flag("--version", std::string("propcam ") + PROPCAM_VERSION);
+  // Options of the program, before or after the command (fallthrough).
+  app.fallthrough();
+  bool quiet = false, verbose = false;
+  app.add_flag("-q,--quiet", quiet, "Warnings and errors only: no progress lines");
+  app.add_flag("-v,--verbose", verbose, "Debug messages too");
+  std::string data_dir;
+  app.add_option("--data-dir", data_dir,
+                 std::string("Folder of PropCam's data: models, boards (default: $") + inference::kDataDirEnv +
+                     ", else share/propcam beside the executable's bin/)");
 
   InferArgs infer_args;
   auto* infer = app.add_subcommand("infer", "Infer the scene model (camera, depth, albedo, lights) of a photo");
@@ -780,7 +803,15 @@ int run_cli(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
   }
+  // Logs go to stderr, or to the journal with priorities under systemd;
+  // stdout is for results and --json.
+  set_up_logging("propcam", quiet ? Verbosity::Quiet : verbose ? Verbosity::Verbose : Verbosity::Normal);
+  Progress::silence_all(quiet);
+  g_quiet = quiet;
   try {
+    inference::set_data_dir(data_dir);
+    // Commands that infer scenes check their models now, not mid-way.
+    if (*infer || *composite || *run || *bench) inference::require_data_files(inference::inference_data_files());
     if (*infer) return cmd_infer(infer_args);
     if (*composite) return cmd_composite(comp);
     if (*props) return cmd_props(props_args);
@@ -849,10 +880,10 @@ int run_cli(int argc, char** argv) {
       return 0;
     }
   } catch (const std::invalid_argument& e) {
-    std::cerr << "propcam: " << e.what() << std::endl;
+    report_failure(std::string("propcam: ") + e.what());
     return 2;
   } catch (const std::exception& e) {
-    std::cerr << "propcam: error: " << e.what() << std::endl;
+    report_failure(std::string("propcam: error: ") + e.what());
     return 1;
   }
   return 0;

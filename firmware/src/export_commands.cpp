@@ -21,11 +21,6 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-fs::path board_root() {
-  if (const char* env = std::getenv("PROPCAM_BOARDS")) return env;
-  return fs::path(PROPCAM_SOURCE_DIR) / "board";
-}
-
 void add_storage_options(CLI::App& cmd, StorageChoice& s) {
   cmd.add_option("--board", s.board, "Board whose storage to use (board/<NAME>/board.json)");
   cmd.add_option("--usb", s.usb, "The stick's folder (instead of the board's)");
@@ -40,7 +35,7 @@ struct Storage {
 
 Storage resolve_storage(const StorageChoice& s) {
   std::optional<BoardConfig> board;
-  if (s.usb.empty() || s.spool.empty()) board = load_board(board_root(), s.board);
+  if (s.usb.empty() || s.spool.empty()) board = load_board(installed_board_roots(), s.board);
   Storage out;
   if (!s.spool.empty()) out.spool_dir = s.spool;
   else if (board->storage.spool_dir.kind == StorageLocation::Kind::Path) out.spool_dir = board->storage.spool_dir.path;

@@ -1,6 +1,7 @@
 // Progress on stderr for anything longer than a second.
 #pragma once
 
+#include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <mutex>
@@ -11,8 +12,11 @@ namespace propcam::firmware {
 class Progress {
  public:
   explicit Progress(bool quiet = false) : quiet_(quiet), start_(std::chrono::steady_clock::now()) {}
+  // propcam -q: no progress from any Progress.
+  static void silence_all(bool silent) { silenced().store(silent); }
+
   void stage(const std::string& what) {
-    if (quiet_) return;
+    if (quiet_ || silenced()) return;
     std::lock_guard lock(mutex_);
     std::fprintf(stderr, "[%6.2fs] %s\n", elapsed(), what.c_str());
   }
@@ -20,7 +24,7 @@ class Progress {
   auto fraction_printer(const std::string& what) {
     return [this, what, last = -1](double f) mutable {
       const int decile = static_cast<int>(f * 10.0);
-      if (quiet_ || decile == last) return;
+      if (quiet_ || silenced() || decile == last) return;
       last = decile;
       std::lock_guard lock(mutex_);
       std::fprintf(stderr, "[%6.2fs] %s %3d%%\n", elapsed(), what.c_str(), decile * 10);
@@ -31,6 +35,10 @@ class Progress {
   }
 
  private:
+  static std::atomic<bool>& silenced() {
+    static std::atomic<bool> flag{false};
+    return flag;
+  }
   bool quiet_;
   std::chrono::steady_clock::time_point start_;
   std::mutex mutex_;

@@ -23,15 +23,10 @@ extern "C" void request_stop(int) { g_stop = true; }
 BoardConfig load_board_argument(const std::string& board) {
   // A path to a board.json (the systemd unit's form), else a board's name.
   if (board.find('/') != std::string::npos || board.ends_with(".json")) return load_board_file(board);
-  return load_board(board_root(), board);
+  return load_board(installed_board_roots(), board);
 }
 
 }  // namespace
-
-std::string board_root() {
-  if (const char* root = std::getenv("PROPCAM_BOARD_ROOT"); root && *root) return root;
-  return std::string(PROPCAM_SOURCE_DIR) + "/board";
-}
 
 CLI::App* add_run_command(CLI::App& app, RunArgs& a) {
   auto* cmd = app.add_subcommand("run", "Run the appliance on a board (the virtual board plays a button script)");

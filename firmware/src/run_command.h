@@ -19,9 +19,6 @@ struct RunArgs {
   bool json_out = false;
 };
 
-// Where board folders are looked up: $PROPCAM_BOARD_ROOT, else the source tree's board/.
-std::string board_root();
-
 CLI::App* add_run_command(CLI::App& app, RunArgs& args);
 int run_run_command(const RunArgs& args);
 

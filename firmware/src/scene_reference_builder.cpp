@@ -40,7 +40,8 @@ const std::vector<LabelledPanorama>& pmndrs_panoramas() {
   return list;
 }
 
-std::string default_pmndrs_dir() { return std::string(PROPCAM_SOURCE_DIR) + "/build/pmndrs_hdri"; }
+// scripts/fetch_pmndrs_hdri.sh's folder, run from the checkout's top.
+std::string default_pmndrs_dir() { return "build/pmndrs_hdri"; }
 
 // pmndrs' "sunrise" is blender-data's "sunrise" (another file and resolution,
 // same scene and yaw): correlating high-passed log luminance over all yaw

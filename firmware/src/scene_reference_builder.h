@@ -24,7 +24,8 @@ const std::vector<LabelledPanorama>& blender_panoramas();
 // The eighteen of @pmndrs/assets (scripts/fetch_pmndrs_hdri.sh; labels as
 // scripts/train_ibl_ranker.sh's).
 const std::vector<LabelledPanorama>& pmndrs_panoramas();
-// Where scripts/fetch_pmndrs_hdri.sh puts them: build/pmndrs_hdri in the source tree.
+// Where scripts/fetch_pmndrs_hdri.sh puts them: build/pmndrs_hdri, relative to
+// the working folder (the scripts run from the checkout's top).
 std::string default_pmndrs_dir();
 // The leave-one-out group of a catalogue name ("city", "pmndrs_city"): its
 // own name, except where both sources hold one photograph ("pmndrs_sunrise"

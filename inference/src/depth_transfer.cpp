@@ -1,4 +1,5 @@
 #include "propcam/inference/depth_transfer.h"
+#include "propcam/inference/data_dir.h"
 
 #include <algorithm>
 #include <chrono>
@@ -237,7 +238,7 @@ DepthDatabase DepthDatabase::load(const std::string& path) {
 
 std::string default_depth_database_path() {
   if (const char* env = std::getenv("PROPCAM_DEPTH_DB"); env && *env) return env;
-  return PROPCAM_DEPTH_DB_PATH;
+  return data_file("inference/depth_db.bin").string();
 }
 
 TransferredDepth transfer_depth(const cv::Mat& photo_linear, const render::PinholeCamera& camera, double camera_height_m,

@@ -1,4 +1,5 @@
 #include "propcam/inference/ibl_ranking.h"
+#include "propcam/inference/data_dir.h"
 
 #include <algorithm>
 #include <cmath>
@@ -519,7 +520,7 @@ IblRanker IblRanker::load(const std::string& path) {
 
 std::string default_ibl_ranker_path() {
   if (const char* env = std::getenv("PROPCAM_IBL_RANKER"); env && *env) return env;
-  return PROPCAM_IBL_RANKER_PATH;
+  return data_file("inference/ibl_ranker.yml.gz").string();
 }
 
 }  // namespace propcam::inference

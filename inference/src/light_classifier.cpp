@@ -1,4 +1,5 @@
 #include "propcam/inference/light_classifier.h"
+#include "propcam/inference/data_dir.h"
 
 #include <algorithm>
 #include <array>
@@ -17,9 +18,6 @@
 #include "propcam/render/panorama.h"
 #include "luminance.h"
 
-#ifndef PROPCAM_LIGHT_CLASSIFIER_PATH
-#define PROPCAM_LIGHT_CLASSIFIER_PATH ""
-#endif
 
 namespace propcam::inference {
 namespace {
@@ -307,7 +305,7 @@ cv::Mat LightClassifier::source_mask(const cv::Mat& photo_linear, const LightCla
 
 std::string default_light_classifier_path() {
   if (const char* env = std::getenv("PROPCAM_LIGHT_CLASSIFIER"); env && *env) return env;
-  return PROPCAM_LIGHT_CLASSIFIER_PATH;
+  return data_file("inference/light_classifier.yml.gz").string();
 }
 
 std::vector<LabelledView> panorama_views(const cv::Mat& latlong, int views_per_turn, const std::vector<double>& pitches_deg,

@@ -1,4 +1,5 @@
 #include "propcam/inference/scene_class_knn.h"
+#include "propcam/inference/data_dir.h"
 
 #include <algorithm>
 #include <chrono>
@@ -147,8 +148,8 @@ SceneReferenceSet rendered_references(const DepthDatabase& db) {
 
 std::string default_scene_reference_path() {
   if (const char* env = std::getenv("PROPCAM_SCENE_REFS"); env && *env) return env;
-  // Committed beside the depth database, from which its renders come.
-  return (std::filesystem::path(PROPCAM_DEPTH_DB_PATH).parent_path() / "scene_refs.bin").string();
+  // Shipped beside the depth database, from which its renders come.
+  return data_file("inference/scene_refs.bin").string();
 }
 
 KnnSceneClass classify_indoor_knn(const std::vector<float>& query, const SceneReferenceSet& refs, const KnnOptions& options) {

@@ -1,4 +1,5 @@
 #include "propcam/inference/scene_classifier.h"
+#include "propcam/inference/data_dir.h"
 
 #include <cmath>
 #include <cstdlib>
@@ -160,8 +161,8 @@ double SceneClassifier::indoor_score(const std::vector<float>& descriptor) const
 
 std::string default_scene_classifier_path() {
   if (const char* env = std::getenv("PROPCAM_SCENE_CLASSIFIER"); env && *env) return env;
-  // Committed beside the references it was trained on.
-  return (std::filesystem::path(PROPCAM_DEPTH_DB_PATH).parent_path() / "scene_classifier.yml.gz").string();
+  // Shipped beside the references it was trained on.
+  return data_file("inference/scene_classifier.yml.gz").string();
 }
 
 }  // namespace propcam::inference

@@ -1,4 +1,4 @@
-// The board's systemd units, udev rules and install script, and propcamd's
+// The board's systemd units, udev rules and install layout, and propcamd's
 // sd_notify protocol (READY / WATCHDOG / STOPPING) without systemd.
 #include <gtest/gtest.h>
 
@@ -68,7 +68,7 @@ TEST(BoardUnits, SystemdAnalyzeVerifiesBothUnits) {
   const fs::path dir = make_temp_dir("units");
   // verify checks that ExecStart's binary exists: point it at the built ones.
   const std::vector<std::pair<std::string, std::string>> units = {
-      {"propcamd.service", "/usr/local/bin/propcamd "}, {"propcam.service", "/usr/local/bin/propcam "}};
+      {"propcamd.service", "/usr/bin/propcamd "}, {"propcam.service", "/usr/bin/propcam "}};
   std::string paths;
   for (const auto& [name, installed] : units) {
     std::string text = read_text(kSource / "board/systemd" / name);
@@ -262,7 +262,7 @@ TEST(BoardUnits, SysusersAndTmpfilesApplyToATempRoot) {
   fs::remove_all(root);
 }
 
-// ---- install script -----------------------------------------------------------
+// ---- install layout (cmake --install, the package's files) ------------------
 
 std::set<std::string> files_under(const fs::path& root) {
   std::set<std::string> files;
@@ -271,38 +271,52 @@ std::set<std::string> files_under(const fs::path& root) {
   return files;
 }
 
-TEST(BoardUnits, InstallScriptInstallsExactlyTheFiles) {
-  const std::string script = (kSource / "scripts/install_board_units.sh").string();
-  const std::string build = fs::path(PROPCAMD).parent_path().parent_path().string();
-  EXPECT_NE(sh("env -u DESTDIR " + script + " " + build).exit_code, 0) << "no DESTDIR: it refuses";
+// The value of `key=` on a unit's line that starts with it ("" if none).
+std::string unit_value(const std::string& text, const std::string& key) {
+  std::istringstream lines(text);
+  for (std::string line; std::getline(lines, line);)
+    if (line.rfind(key + "=", 0) == 0) return line.substr(key.size() + 1);
+  return "";
+}
 
+TEST(BoardUnits, InstallPutsEveryFileWhereDebianKeepsIt) {
+  const fs::path build = PROPCAM_BINARY_DIR;
+  if (read_text(build / "CMakeCache.txt").find("CMAKE_INSTALL_PREFIX:PATH=/usr\n") == std::string::npos)
+    GTEST_SKIP() << "this build's prefix is not /usr (only the release preset's is)";
   const fs::path root = make_temp_dir("destdir");
-  const ShellRun r = sh("DESTDIR=" + root.string() + " " + script + " " + build);
+  const ShellRun r = sh("DESTDIR=" + root.string() + " cmake --install " + build.string());
   ASSERT_EQ(r.exit_code, 0) << r.out;
-  const std::set<std::string> expected = {
-      "usr/local/bin/propcam",
-      "usr/local/bin/propcamd",
-      "etc/systemd/system/propcamd.service",
-      "etc/systemd/system/propcam.service",
-      "etc/sysusers.d/propcam.conf",
-      "etc/tmpfiles.d/propcam.conf",
-      "etc/udev/rules.d/60-propcam.rules",
-      "etc/propcam/propcamd.env",
-      "etc/propcam/propcam.env",
-      "usr/local/share/propcam/board/systemd/README.md",
-      "usr/local/share/propcam/board/rpi/board.json",
-      "usr/local/share/propcam/board/usb-webcam/board.json",
-  };
-  EXPECT_EQ(files_under(root), expected);
-  EXPECT_EQ(read_text(root / "etc/systemd/system/propcamd.service"),
-            read_text(kSource / "board/systemd/propcamd.service"));
-  EXPECT_TRUE((fs::status(root / "usr/local/bin/propcamd").permissions() & fs::perms::owner_exec) != fs::perms::none);
+  const std::set<std::string> files = files_under(root);
+  for (const char* f : {"usr/bin/propcam", "usr/bin/propcamd", "usr/share/propcam/inference/depth_db.bin",
+                        "usr/share/propcam/inference/scene_refs.bin", "usr/share/propcam/inference/scene_classifier.yml.gz",
+                        "usr/share/propcam/inference/light_classifier.yml.gz", "usr/share/propcam/inference/ibl_ranker.yml.gz",
+                        "usr/share/propcam/board/virtual/board.json", "usr/share/propcam/board/virtual/demo_session.buttons",
+                        "usr/share/propcam/board/virtual/recordings/living_room/recording.json",
+                        "usr/share/doc/propcam/README.systemd.md", "etc/propcam/boards/rpi/board.json",
+                        "etc/propcam/boards/usb-webcam/board.json", "etc/propcam/propcam.env", "etc/propcam/propcamd.env",
+                        "lib/systemd/system/propcam.service", "lib/systemd/system/propcamd.service",
+                        "usr/lib/sysusers.d/propcam.conf", "usr/lib/tmpfiles.d/propcam.conf",
+                        "lib/udev/rules.d/60-propcam.rules"})
+    EXPECT_TRUE(files.count(f)) << f << " is not installed";
+  // Nothing outside Debian's places for a package's files.
+  const std::vector<std::string> places = {"usr/bin/", "usr/share/propcam/", "usr/share/doc/propcam/", "etc/propcam/",
+                                           "lib/systemd/system/", "lib/udev/rules.d/", "usr/lib/sysusers.d/",
+                                           "usr/lib/tmpfiles.d/"};
+  for (const std::string& f : files)
+    EXPECT_TRUE(std::any_of(places.begin(), places.end(), [&](const std::string& p) { return f.rfind(p, 0) == 0; }))
+        << f << " is outside Debian's places";
+  EXPECT_TRUE((fs::status(root / "usr/bin/propcamd").permissions() & fs::perms::owner_exec) != fs::perms::none);
 
-  // The env files are the admin's: a second install keeps them.
-  std::ofstream(root / "etc/propcam/propcamd.env") << "PROPCAMD_CAMERA=v4l2:/dev/video0\n";
-  ASSERT_EQ(sh("DESTDIR=" + root.string() + " " + script + " " + build).exit_code, 0);
-  EXPECT_EQ(read_text(root / "etc/propcam/propcamd.env"), "PROPCAMD_CAMERA=v4l2:/dev/video0\n");
-  EXPECT_EQ(files_under(root), expected);
+  // The units start what was installed, on a board that was installed.
+  for (const char* unit : {"propcam.service", "propcamd.service"}) {
+    const std::string text = read_text(root / "lib/systemd/system" / unit);
+    const std::string exec = unit_value(text, "ExecStart");
+    const std::string program = exec.substr(0, exec.find(' '));
+    EXPECT_TRUE(fs::exists(root / program.substr(1))) << unit << " starts " << program << ", which is not installed";
+  }
+  const std::string board =
+      unit_value(read_text(root / "lib/systemd/system/propcam.service"), "Environment").substr(std::string("PROPCAM_BOARD=").size());
+  EXPECT_TRUE(fs::exists(root / board.substr(1))) << "the default board " << board << " is not installed";
   fs::remove_all(root);
 }
 

@@ -157,6 +157,63 @@ TEST(Cli, BadInputIsAClearErrorNotACrash) {
   EXPECT_NE(r.out.find("junk.png"), std::string::npos) << r.out;
 }
 
+TEST(Cli, VersionNamesTheProgramAndItsVersion) {
+  CliRun r = propcam("--version");
+  EXPECT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_EQ(r.out, std::string("propcam ") + PROPCAM_VERSION_EXPECTED + "\n");
+  r = propcam::test::run_shell(std::string(PROPCAMD) + " --version 2>&1");
+  EXPECT_EQ(r.out, std::string("propcamd ") + PROPCAM_VERSION_EXPECTED + "\n");
+}
+
+TEST(Cli, QuietLeavesOutProgressAndVerboseIsAccepted) {
+  const CliRun normal = propcam("infer " + fixture_photo() + " -o " + temp("loud_scene"));
+  ASSERT_EQ(normal.exit_code, 0) << normal.out;
+  EXPECT_NE(normal.out.find("s] "), std::string::npos) << "progress lines, e.g. [  0.10s] ...: " << normal.out;
+  const CliRun quiet = propcam("-q infer " + fixture_photo() + " -o " + temp("quiet_scene"));
+  ASSERT_EQ(quiet.exit_code, 0) << quiet.out;
+  EXPECT_EQ(quiet.out.find("s] "), std::string::npos) << quiet.out;
+  EXPECT_EQ(quiet.out.find(" ok "), std::string::npos) << "only unusable stages are reported: " << quiet.out;
+  EXPECT_TRUE(fs::exists(temp("quiet_scene") + "/scene.json"));
+  EXPECT_EQ(propcam("infer -v " + fixture_photo() + " -o " + temp("verbose_scene")).exit_code, 0);
+}
+
+// The models are looked up in the data folder (share/propcam beside bin/,
+// $PROPCAM_DATA_DIR or --data-dir); one missing or unreadable stops the
+// command before any work, naming the file.
+TEST(Cli, AMissingOrUnreadableDataFileStopsInferenceNamingIt) {
+  const fs::path data = temp("data_dir");
+  fs::remove_all(data);
+  fs::create_directories(data / "inference");
+  const std::string out = temp("data_dir_scene");
+  CliRun r = propcam("--data-dir " + data.string() + " infer " + fixture_photo() + " -o " + out);
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.out.find((data / "inference/depth_db.bin").string() + " is missing"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(out + "/scene.json"));
+
+  // The environment variable, and the flag after the command.
+  r = propcam::test::run_shell("PROPCAM_DATA_DIR=" + data.string() + " " + PROPCAM_CLI + " infer " + fixture_photo() +
+                               " -o " + out + " 2>&1");
+  EXPECT_NE(r.out.find((data / "inference/depth_db.bin").string()), std::string::npos) << r.out;
+  r = propcam("composite " + fixture_photo() + " --prop vase --at 80,100 -o " + temp("d.png") + " --data-dir " + data.string());
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.out.find("is missing"), std::string::npos) << r.out;
+
+  // All present but one unreadable (an empty file reads nothing).
+  const fs::path shipped = fs::path(PROPCAM_BINARY_DIR) / "share/propcam/inference";
+  for (const char* f : {"depth_db.bin", "scene_refs.bin", "scene_classifier.yml.gz", "light_classifier.yml.gz"})
+    fs::copy_file(shipped / f, data / "inference" / f, fs::copy_options::overwrite_existing);
+  std::ofstream(data / "inference/ibl_ranker.yml.gz").flush();
+  r = propcam("--data-dir " + data.string() + " infer " + fixture_photo() + " -o " + out);
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.out.find((data / "inference/ibl_ranker.yml.gz").string() + " cannot be read"), std::string::npos) << r.out;
+
+  r = propcam("--data-dir " + (data / "no_such").string() + " infer " + fixture_photo() + " -o " + out);
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.out.find("is not a folder"), std::string::npos) << r.out;
+  // Commands that load no model do not ask for them.
+  EXPECT_EQ(propcam("--data-dir " + data.string() + " props").exit_code, 0);
+}
+
 TEST(Cli, InferOnLineSegments) {
   const std::string csv = temp("lines.csv");
   std::ofstream(csv) << "x1,y1,x2,y2\n10,10,100,12\n";
@@ -596,6 +653,24 @@ TEST(CliCamera, RecordFromAPhotoThenShootFromTheRecording) {
     ASSERT_EQ(back.size(), photo.size());
     EXPECT_LT(mean_abs_difference(back, photo), format == "RGB24" ? 0.01 : 4.0) << format;
   }
+}
+
+// With no camera attached, a shot is an error that says how to name one,
+// not a silent shot of the bundled recording.
+TEST(CliCamera, ShootWithNoCameraAttachedSaysSoAndWritesNothing) {
+  const std::string none = temp("no_recordings");
+  fs::create_directories(none);
+  const json cameras = json_tail(propcam("cameras --recordings " + none + " --json").out);
+  if (!cameras.empty()) GTEST_SKIP() << "this machine has a camera: " << cameras.dump();
+  const std::string shot = temp("no_camera.png");
+  CliRun r = propcam("shoot -o " + shot);
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.out.find("no camera attached"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("--camera replay:"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(shot));
+  r = propcam("record --frames 2 -o " + temp("no_camera_rec"));
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.out.find("no camera attached"), std::string::npos) << r.out;
 }
 
 TEST(CliCamera, ShootAndRecordRefuseWhatTheyCannotDo) {
