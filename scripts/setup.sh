@@ -24,6 +24,8 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev gnuplot-nox
   # the security tests trace the appliance's sockets and file writes
   strace
+  # the USB stick helper lets the service write an ext4 stick (board/stick)
+  acl
   # real photographs for tests: OpenCV's sample images, and CC0 HDR panoramas
   # (blender-data's studio lights) that real views and, later, the IBL library are cut from
   opencv-doc blender-data

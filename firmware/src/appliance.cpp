@@ -120,6 +120,11 @@ Appliance::Appliance(ApplianceOptions options)
   fs::create_directories(data_dir);
   if (!options_.snapshots_dir.empty()) fs::create_directories(options_.snapshots_dir);
   display_ = open_display(board.display, options_.snapshots_dir, data_dir);
+  if (board.display.backend != DisplayBackend::File) {
+    console_ = std::make_unique<ui_fb::ConsoleTakeover>();
+    spdlog::info("appliance: console {}", console_->taken() ? "in graphics mode (" + console_->description() + ")"
+                                                             : console_->description());
+  }
   canvas_ = std::make_unique<ui_fb::Canvas>(display_->size());
   std::optional<fs::path> usb_runtime;
   if (!options_.usb_dir.empty()) usb_runtime = options_.usb_dir;

@@ -19,6 +19,7 @@
 #include "appliance_state.h"
 #include "board_config.h"
 #include "propcam/ui_fb/buttons.h"
+#include "propcam/ui_fb/console.h"
 #include "propcam/ui_fb/display.h"
 #include "propcam/ui_fb/screens.h"
 #include "storage_export.h"
@@ -95,6 +96,8 @@ class Appliance {
   void take_snapshot(const std::string& label);
 
   ApplianceOptions options_;
+  // The VT under a device display, in graphics mode while the UI is up.
+  std::unique_ptr<ui_fb::ConsoleTakeover> console_;
   std::unique_ptr<ui_fb::Display> display_;
   std::unique_ptr<ui_fb::ButtonInput> buttons_;
   ui_fb::ScriptButtonInput* script_ = nullptr;  // buttons_ when it is a script

@@ -41,6 +41,7 @@
 #include "propcam/render/mesh_io.h"
 #include "propcam/render/props.h"
 #include "propcam/render/scene_file.h"
+#include "propcam/ui_fb/console.h"
 #include "synthetic_truth.h"
 
 namespace propcam::firmware {
@@ -464,6 +465,17 @@ struct ViewArgs {
 };
 
 // A rectilinear "photo" cut from an HDR panorama, exposed like a camera would.
+// The service's ExecStopPost: the appliance restores the console itself on
+// exit and on fatal signals, but not after SIGKILL.
+int cmd_console(const std::string& tty, bool restore) {
+  std::string why;
+  if (restore && !ui_fb::restore_console_text_mode(tty, why)) throw std::runtime_error(tty + ": " + why);
+  const ui_fb::ConsoleMode mode = ui_fb::console_mode(tty, why);
+  if (mode == ui_fb::ConsoleMode::Unknown) throw std::runtime_error(tty + ": " + why);
+  std::cout << tty << ": " << (mode == ui_fb::ConsoleMode::Graphics ? "graphics" : "text") << std::endl;
+  return 0;
+}
+
 int cmd_view(const ViewArgs& a) {
   render::ViewSpec spec;
   if (!parse_pair(a.size, spec.width, spec.height, 'x') || spec.width < 1 || spec.height < 1)
@@ -798,6 +810,12 @@ int run_cli(int argc, char** argv) {
   view->add_option("--exposure", view_args.exposure_ev, "Exposure change in stops after auto exposure");
   view->add_flag("--json", view_args.json_out, "Print the camera as JSON");
 
+  std::string console_tty = "/dev/tty0";
+  bool console_restore = false;
+  auto* console = app.add_subcommand("console", "The VT under the display: its mode, or back to text mode (--restore)");
+  console->add_option("--tty", console_tty, "The virtual terminal")->capture_default_str();
+  console->add_flag("--restore", console_restore, "Switch it to text mode (after the appliance was killed)");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -840,6 +858,7 @@ int run_cli(int argc, char** argv) {
       return 0;
     }
     if (*view) return cmd_view(view_args);
+    if (*console) return cmd_console(console_tty, console_restore);
     if (*render_cmd) return cmd_render(render_args);
     if (*bench_render) {
       render_bench_options.sizes = parse_sizes(render_bench_sizes);

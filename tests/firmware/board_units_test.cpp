@@ -67,17 +67,23 @@ TEST(BoardUnits, SystemdAnalyzeVerifiesBothUnits) {
   if (sh("command -v systemd-analyze").exit_code != 0) GTEST_SKIP() << "systemd-analyze is not installed";
   const fs::path dir = make_temp_dir("units");
   // verify checks that ExecStart's binary exists: point it at the built ones.
-  const std::vector<std::pair<std::string, std::string>> units = {
-      {"propcamd.service", "/usr/bin/propcamd "}, {"propcam.service", "/usr/bin/propcam "}};
+  const std::string stick = (kSource / "board/stick/propcam-stick").string();
+  const std::vector<std::array<std::string, 3>> units = {  // file, installed program, built program
+      {"propcamd.service", "/usr/bin/propcamd ", PROPCAMD},
+      {"propcam.service", "/usr/bin/propcam ", PROPCAM_CLI},
+      {"propcam-stick@.service", "/usr/libexec/propcam/propcam-stick ", stick}};
   std::string paths;
-  for (const auto& [name, installed] : units) {
+  for (const auto& [name, installed, built] : units) {
     std::string text = read_text(kSource / "board/systemd" / name);
     ASSERT_NE(text.find("ExecStart=" + installed), std::string::npos) << name;
-    replace_all(text, "ExecStart=" + installed,
-                "ExecStart=" + std::string(name == "propcamd.service" ? PROPCAMD : PROPCAM_CLI) + " ");
-    std::ofstream(dir / name) << text;
+    replace_all(text, "ExecStart=" + installed, "ExecStart=" + built + " ");
+    replace_all(text, "ExecStop=" + installed, "ExecStop=" + built + " ");
+    replace_all(text, "ExecStopPost=" + installed, "ExecStopPost=" + built + " ");
+    // A template is verified as one of its instances.
+    const std::string file = name == "propcam-stick@.service" ? "propcam-stick@sda1.service" : name;
+    std::ofstream(dir / file) << text;
     paths += ' ';  // not " " + string: GCC 12 warns falsely (-Wrestrict)
-    paths += (dir / name).string();
+    paths += (dir / file).string();
   }
   const ShellRun r = sh("cd " + dir.string() + " && timeout 120 systemd-analyze verify --man=no" + paths);
   fs::remove_all(dir);
@@ -295,11 +301,12 @@ TEST(BoardUnits, InstallPutsEveryFileWhereDebianKeepsIt) {
                         "usr/share/doc/propcam/README.systemd.md", "etc/propcam/boards/rpi/board.json",
                         "etc/propcam/boards/usb-webcam/board.json", "etc/propcam/propcam.env", "etc/propcam/propcamd.env",
                         "lib/systemd/system/propcam.service", "lib/systemd/system/propcamd.service",
+                        "lib/systemd/system/propcam-stick@.service", "usr/libexec/propcam/propcam-stick",
                         "usr/lib/sysusers.d/propcam.conf", "usr/lib/tmpfiles.d/propcam.conf",
                         "lib/udev/rules.d/60-propcam.rules"})
     EXPECT_TRUE(files.count(f)) << f << " is not installed";
   // Nothing outside Debian's places for a package's files.
-  const std::vector<std::string> places = {"usr/bin/", "usr/share/propcam/", "usr/share/doc/propcam/", "etc/propcam/",
+  const std::vector<std::string> places = {"usr/bin/", "usr/libexec/propcam/", "usr/share/propcam/", "usr/share/doc/propcam/", "etc/propcam/",
                                            "lib/systemd/system/", "lib/udev/rules.d/", "usr/lib/sysusers.d/",
                                            "usr/lib/tmpfiles.d/"};
   for (const std::string& f : files)
@@ -308,7 +315,7 @@ TEST(BoardUnits, InstallPutsEveryFileWhereDebianKeepsIt) {
   EXPECT_TRUE((fs::status(root / "usr/bin/propcamd").permissions() & fs::perms::owner_exec) != fs::perms::none);
 
   // The units start what was installed, on a board that was installed.
-  for (const char* unit : {"propcam.service", "propcamd.service"}) {
+  for (const char* unit : {"propcam.service", "propcamd.service", "propcam-stick@.service"}) {
     const std::string text = read_text(root / "lib/systemd/system" / unit);
     const std::string exec = unit_value(text, "ExecStart");
     const std::string program = exec.substr(0, exec.find(' '));
@@ -318,6 +325,62 @@ TEST(BoardUnits, InstallPutsEveryFileWhereDebianKeepsIt) {
       unit_value(read_text(root / "lib/systemd/system/propcam.service"), "Environment").substr(std::string("PROPCAM_BOARD=").size());
   EXPECT_TRUE(fs::exists(root / board.substr(1))) << "the default board " << board << " is not installed";
   fs::remove_all(root);
+}
+
+// ---- the USB stick ---------------------------------------------------------------
+
+// propcam-stick on a real block device (a loop device over an image): root
+// and losetup needed. The stick must end up writable by an unprivileged user.
+TEST(BoardUnits, StickHelperMountsAStickWritableForTheServiceUser) {
+  if (geteuid() != 0) GTEST_SKIP() << "mounting needs root";
+  if (sh("command -v losetup && command -v mkfs.ext4 && command -v setfacl && command -v setpriv").exit_code != 0)
+    GTEST_SKIP() << "losetup, mkfs.ext4, setfacl or setpriv missing";
+  const std::string helper = (kSource / "board/stick/propcam-stick").string();
+  const fs::path dir = make_temp_dir("stick");
+  const fs::path image = dir / "stick.img", mount_point = dir / "media";
+  // mkdtemp's 0700 would stop the unprivileged user before the stick.
+  fs::permissions(dir, fs::perms::owner_all | fs::perms::group_read | fs::perms::group_exec |
+                           fs::perms::others_read | fs::perms::others_exec);
+  ASSERT_EQ(sh("truncate -s 16M " + image.string()).exit_code, 0);
+  const std::string env = "PROPCAM_STICK_DIR=" + mount_point.string() + " PROPCAM_STICK_USER=nobody ";
+
+  const ShellRun loop = sh("losetup -f --show " + image.string());
+  if (loop.exit_code != 0) {
+    fs::remove_all(dir);
+    GTEST_SKIP() << "no loop device here: " << loop.out;
+  }
+  const std::string device = loop.out.substr(0, loop.out.find('\n'));
+
+  // No file system: refused, nothing mounted.
+  ShellRun r = sh(env + helper + " mount " + device);
+  EXPECT_EQ(r.exit_code, 1) << r.out;
+  EXPECT_NE(r.out.find("not FAT, exFAT or ext4"), std::string::npos) << r.out;
+  EXPECT_NE(sh("mountpoint -q " + mount_point.string()).exit_code, 0);
+
+  // ext4: mounted, its owners kept, and writable by the service's user.
+  ASSERT_EQ(sh("mkfs.ext4 -q -F " + device).exit_code, 0);
+  r = sh(env + helper + " mount " + device);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_EQ(sh("mountpoint -q " + mount_point.string()).exit_code, 0);
+  EXPECT_EQ(sh("stat -c %U " + mount_point.string()).out, "root\n");
+  r = sh("setpriv --reuid=nobody --regid=nogroup --clear-groups mkdir " + (mount_point / "PropCam").string());
+  EXPECT_EQ(r.exit_code, 0) << "the service's user cannot write the stick: " << r.out;
+  // A second stick while one is mounted is left alone.
+  r = sh(env + helper + " mount " + device);
+  EXPECT_EQ(r.exit_code, 1) << r.out;
+  EXPECT_NE(r.out.find("already holds a stick"), std::string::npos) << r.out;
+
+  EXPECT_EQ(sh(env + helper + " unmount " + device).exit_code, 0);
+  EXPECT_NE(sh("mountpoint -q " + mount_point.string()).exit_code, 0);
+  EXPECT_EQ(sh(env + helper + " unmount " + device).exit_code, 0) << "unmounting twice (a pulled stick) is fine";
+
+  r = sh(env + helper + " mount " + image.string());
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.out.find("not a block device"), std::string::npos) << r.out;
+  EXPECT_EQ(sh(env + helper + " eject " + device).exit_code, 2);
+
+  sh("losetup -d " + device);
+  fs::remove_all(dir);
 }
 
 }  // namespace

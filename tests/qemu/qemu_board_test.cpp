@@ -355,4 +355,17 @@ TEST_F(QemuBoard, PullingTheStickMidExportLosesNothing) {
   EXPECT_LT(mean_abs_diff(screen(area)(upper), scaled(upper)), 3.0);
 }
 
+// (5) The appliance puts the VT under its fbdev display in graphics mode and
+// gives it back in text mode on SIGTERM; ui_fb's Console tests, run after
+// it on the same real VT, begin by requiring text mode, then take the VT
+// and crash a child holding it.
+TEST_F(QemuBoard, TheUiTakesTheConsoleAndGivesItBackEvenAfterACrash) {
+  const std::string log = slurp(boot().out / "run.log");
+  EXPECT_NE(log.find("console in graphics mode"), std::string::npos) << log;
+  const std::string tests = slurp(boot().out / "console_tests.txt");
+  EXPECT_EQ(slurp(boot().out / "console_tests.rc"), "0\n") << tests;
+  EXPECT_NE(tests.find("[       OK ] Console.AVirtualTerminalGoesToGraphicsAndBackEvenAfterACrash"), std::string::npos)
+      << "not run on a VT in text mode: " << tests;
+}
+
 }  // namespace

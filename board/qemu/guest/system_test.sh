@@ -8,6 +8,8 @@
 #      the converged composite; a long OK exports while the (write-throttled)
 #      stick is pulled mid-export; the stick comes back and the spool is
 #      flushed onto it. run.json, run.log, snapshots/, stick.txt.
+#   5. the console: back in text mode after the appliance, and taken and
+#      restored (after a crash too) by ui_fb's Console tests: console_tests.txt.
 # /run/vm/env.sh (written by the host) sets PROPCAM_BIN (the build folder)
 # and may set PROPCAM_DATA (a data folder with thumbnails to start from).
 . "$(dirname "$0")/lib.sh"
@@ -142,6 +144,11 @@ session || ok=0
 kill -TERM "$app"; wait "$app"; echo $? > "$OUT/run.rc"
 wait "$cameras"
 kill -TERM "$daemon"; wait "$daemon"
+# The console: ui_fb's Console tests start by requiring the VT in text mode
+# (the appliance must have given it back on SIGTERM), then take it and have
+# a child crash holding it, on this real VT.
+"$PROPCAM_BIN/tests/ui_fb_tests" --gtest_filter='Console.*' > "$OUT/console_tests.txt" 2>&1
+echo $? > "$OUT/console_tests.rc"
 cp -r "$SNAPSHOTS" "$OUT/snapshots"
 ls -la "$STICK_MOUNT"/PropCam > "$OUT/stick.txt" 2>&1
 ls -A /run/propcam/spool > "$OUT/spool.txt" 2>&1
