@@ -464,9 +464,8 @@ struct ViewArgs {
   bool json_out = false;
 };
 
-// A rectilinear "photo" cut from an HDR panorama, exposed like a camera would.
-// The service's ExecStopPost: the appliance restores the console itself on
-// exit and on fatal signals, but not after SIGKILL.
+// `propcam console`, the service's ExecStopPost: the appliance restores the
+// console itself on exit and on fatal signals, but not after SIGKILL.
 int cmd_console(const std::string& tty, bool restore) {
   std::string why;
   if (restore && !ui_fb::restore_console_text_mode(tty, why)) throw std::runtime_error(tty + ": " + why);
@@ -476,6 +475,7 @@ int cmd_console(const std::string& tty, bool restore) {
   return 0;
 }
 
+// A rectilinear "photo" cut from an HDR panorama, exposed like a camera would.
 int cmd_view(const ViewArgs& a) {
   render::ViewSpec spec;
   if (!parse_pair(a.size, spec.width, spec.height, 'x') || spec.width < 1 || spec.height < 1)
