@@ -10,7 +10,6 @@
 #include <nlohmann/json.hpp>
 
 #include "propcam/capture/frame.h"
-#include "propcam/inference/data_dir.h"
 
 namespace propcam::firmware {
 namespace fs = std::filesystem;
@@ -426,14 +425,15 @@ json parse_file(const fs::path& file) {
   return root;
 }
 
+
+}  // namespace
+
 bool valid_board_name(const std::string& name) {
   return !name.empty() && name.size() <= 64 && name[0] != '-' &&
          std::all_of(name.begin(), name.end(), [](char ch) {
            return (ch >= 'a' && ch <= 'z') || (ch >= '0' && ch <= '9') || ch == '-' || ch == '_';
          });
 }
-
-}  // namespace
 
 BoardConfig load_board_file(const fs::path& board_json) {
   const fs::path file = fs::absolute(board_json).lexically_normal();
@@ -477,29 +477,6 @@ BoardConfig load_board(const fs::path& board_root, const std::string& name) {
   if (std::find(boards.begin(), boards.end(), name) == boards.end())
     throw BoardConfigError(board_root, "", "no board \"" + name + "\" (boards: " + (boards.empty() ? "none" : join(boards)) + ")");
   return load_board_file(file);
-}
-
-std::vector<fs::path> installed_board_roots() {
-  return {inference::config_dir() / "boards", inference::data_dir() / "board"};
-}
-
-BoardConfig load_board(const std::vector<fs::path>& board_roots, const std::string& name) {
-  if (!valid_board_name(name))
-    throw BoardConfigError(board_roots.empty() ? fs::path{} : board_roots.back(), "",
-                           "\"" + name + "\" is not a board name (lower-case letters, digits, - and _)");
-  std::vector<std::string> all;
-  std::string roots;
-  for (const fs::path& root : board_roots) {
-    const auto boards = list_boards(root);
-    if (std::find(boards.begin(), boards.end(), name) != boards.end()) return load_board_file(root / name / "board.json");
-    all.insert(all.end(), boards.begin(), boards.end());
-    roots += (roots.empty() ? "" : ", ") + root.string();
-  }
-  std::sort(all.begin(), all.end());
-  all.erase(std::unique(all.begin(), all.end()), all.end());
-  throw BoardConfigError(board_roots.empty() ? fs::path{} : board_roots.back(), "",
-                         "no board \"" + name + "\" in " + (roots.empty() ? "no folder" : roots) +
-                             " (boards: " + (all.empty() ? "none" : join(all)) + ")");
 }
 
 }  // namespace propcam::firmware

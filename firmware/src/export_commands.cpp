@@ -11,6 +11,7 @@
 #include <stdexcept>
 
 #include "board_config.h"
+#include "board_lookup.h"
 #include "propcam/capture/image_file.h"
 #include "storage_export.h"
 #include "storage_names.h"

@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "appliance.h"
+#include "board_lookup.h"
 
 namespace propcam::firmware {
 namespace fs = std::filesystem;
