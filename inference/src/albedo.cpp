@@ -123,6 +123,9 @@ cv::Mat albedo_with_its_cast(const cv::Mat& photo_linear, const AlbedoOptions& o
 cv::Mat estimate_albedo(const cv::Mat& photo_linear, const AlbedoOptions& options, StageReport& report) {
   const auto start = std::chrono::steady_clock::now();
   cv::Mat albedo = albedo_with_its_cast(photo_linear, options, report);
+  // A NaN pixel becomes black paint on every architecture: OpenCV's min/max
+  // drop NaN only in x86's SIMD lanes (NEON and scalar tails keep it).
+  cv::patchNaNs(albedo, 0.0);
   if (options.grey_world) {
     make_mean_grey(albedo, report);
     report.why += ", mean made grey";
