@@ -4,7 +4,7 @@
 # composites props into two real photos.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash scripts/setup.sh
+bash scripts/setup.sh --demo
 cmake --preset release
 cmake --build --preset release -j "$(nproc)" --target propcam propcamd
 mkdir -p out

@@ -1,12 +1,15 @@
 #!/usr/bin/env bash
-# Installs every Debian (bookworm) package PropCam needs to build, test and run.
+# Installs the Debian (bookworm) packages PropCam needs:
+#   scripts/setup.sh          everything to build, test and run (CI, scripts/test.sh)
+#   scripts/setup.sh --demo   only what building and running the demo needs
+#                             (scripts/demo.sh): no clang, Blender, QEMU or test tools
+# On a board nothing of this is needed: the propcam package's Depends name
+# its run-time libraries (README, "Install on a board").
 set -euo pipefail
 
-packages=(
+demo_packages=(
   # toolchain
   build-essential cmake ninja-build pkg-config git
-  # clang with libFuzzer and the sanitizer runtimes (tests/fuzz, scripts/fuzz.sh)
-  clang libclang-rt-14-dev
   # hardware backends named by the design
   libcamera-dev libv4l-dev libgpiod-dev
   # DRM/KMS display for boards without fbdev emulation (ui_fb DrmDisplay)
@@ -15,20 +18,28 @@ packages=(
   libsystemd-dev
   # MJPEG frames (libjpeg-turbo's libjpeg API)
   libjpeg62-turbo-dev
-  # vision, geometry, rendering, image files
+  # vision, geometry, rendering, image files (OpenImageIO's CMake package
+  # names its tools: configuring needs openimageio-tools)
   libopencv-dev libopencv-contrib-dev libeigen3-dev libembree-dev libceres-dev
   libopenimageio-dev openimageio-tools
   # libraries the code uses
   libcli11-dev nlohmann-json3-dev libspdlog-dev libtinyobjloader-dev libfreetype-dev fonts-dejavu-core
-  # tests and benchmarks
-  libgtest-dev libgmock-dev libbenchmark-dev gnuplot-nox
+  # GoogleTest: the release preset configures the tests (the demo builds none)
+  libgtest-dev libgmock-dev
+  # real photographs for the demo and the tests: OpenCV's sample images, and CC0
+  # HDR panoramas (blender-data's studio lights) that real views are cut from
+  opencv-doc blender-data
+)
+
+dev_packages=(
+  # clang with libFuzzer and the sanitizer runtimes (tests/fuzz, scripts/fuzz.sh)
+  clang libclang-rt-14-dev
+  # benchmarks and their plots
+  libbenchmark-dev gnuplot-nox
   # the security tests trace the appliance's sockets and file writes
   strace
   # the USB stick helper lets the service write an ext4 stick (board/stick)
   acl
-  # real photographs for tests: OpenCV's sample images, and CC0 HDR panoramas
-  # (blender-data's studio lights) that real views and, later, the IBL library are cut from
-  opencv-doc blender-data
   # the Blender world (scripts/make_blender_world.sh) and its units check:
   # scenes made and rendered by Cycles, not by our code (its Python uses numpy)
   blender python3-numpy
@@ -42,6 +53,9 @@ packages=(
   # by hand; the IPA modules (vimc's among them) for libcamera's pipelines
   udev libcamera-tools libcamera-ipa
 )
+
+packages=("${demo_packages[@]}")
+if [[ "${1:-}" != --demo ]]; then packages+=("${dev_packages[@]}"); fi
 
 missing=()
 for p in "${packages[@]}"; do
