@@ -426,14 +426,14 @@ json parse_file(const fs::path& file) {
 }
 
 
-}  // namespace
-
 bool valid_board_name(const std::string& name) {
   return !name.empty() && name.size() <= 64 && name[0] != '-' &&
          std::all_of(name.begin(), name.end(), [](char ch) {
            return (ch >= 'a' && ch <= 'z') || (ch >= '0' && ch <= '9') || ch == '-' || ch == '_';
          });
 }
+
+}  // namespace
 
 BoardConfig load_board_file(const fs::path& board_json) {
   const fs::path file = fs::absolute(board_json).lexically_normal();
@@ -469,14 +469,27 @@ std::vector<std::string> list_boards(const fs::path& board_root) {
   return names;
 }
 
-BoardConfig load_board(const fs::path& board_root, const std::string& name) {
-  const fs::path file = board_root / name / "board.json";
+BoardConfig load_board(const std::vector<fs::path>& board_roots, const std::string& name) {
+  const fs::path where = board_roots.empty() ? fs::path{} : board_roots.back();
   if (!valid_board_name(name))
-    throw BoardConfigError(board_root, "", "\"" + name + "\" is not a board name (lower-case letters, digits, - and _)");
-  const auto boards = list_boards(board_root);
-  if (std::find(boards.begin(), boards.end(), name) == boards.end())
-    throw BoardConfigError(board_root, "", "no board \"" + name + "\" (boards: " + (boards.empty() ? "none" : join(boards)) + ")");
-  return load_board_file(file);
+    throw BoardConfigError(where, "", "\"" + name + "\" is not a board name (lower-case letters, digits, - and _)");
+  std::vector<std::string> all;
+  std::vector<std::string> roots;
+  for (const fs::path& root : board_roots) {
+    const auto boards = list_boards(root);
+    if (std::find(boards.begin(), boards.end(), name) != boards.end()) return load_board_file(root / name / "board.json");
+    all.insert(all.end(), boards.begin(), boards.end());
+    roots.push_back(root.string());
+  }
+  std::sort(all.begin(), all.end());
+  all.erase(std::unique(all.begin(), all.end()), all.end());
+  // One folder is the error's file; several are named.
+  const std::string in = roots.size() > 1 ? " in " + join(roots) : "";
+  throw BoardConfigError(where, "", "no board \"" + name + "\"" + in + " (boards: " + (all.empty() ? "none" : join(all)) + ")");
+}
+
+BoardConfig load_board(const fs::path& board_root, const std::string& name) {
+  return load_board(std::vector<fs::path>{board_root}, name);
 }
 
 }  // namespace propcam::firmware

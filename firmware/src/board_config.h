@@ -111,15 +111,16 @@ struct BoardConfig {
   StorageConfig storage;
 };
 
-// A board's name: lower-case letters, digits, - and _ (not first), at most 64.
-bool valid_board_name(const std::string& name);
-
 // The boards under board_root (folders holding a board.json), sorted by name.
 std::vector<std::string> list_boards(const std::filesystem::path& board_root);
 
 // Loads and validates board_root/name/board.json. Throws BoardConfigError
 // (an unknown name lists the boards there).
 BoardConfig load_board(const std::filesystem::path& board_root, const std::string& name);
+
+// load_board over several roots: the first that holds the name wins; an
+// unknown name lists the boards of all of them and, if several, the roots.
+BoardConfig load_board(const std::vector<std::filesystem::path>& board_roots, const std::string& name);
 
 // Loads and validates one board file; its folder is the board folder.
 BoardConfig load_board_file(const std::filesystem::path& board_json);
