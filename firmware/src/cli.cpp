@@ -76,12 +76,9 @@ json reports_json(const inference::SceneModel& scene) {
   return out;
 }
 
-// -q: warnings and errors only (unusable stages, failures).
-bool g_quiet = false;
-
 void print_reports(const inference::SceneModel& scene) {
   for (const auto& r : scene.reports)
-    if (!g_quiet || !r.usable)
+    if (!Progress::all_silenced() || !r.usable)  // -q: unusable stages only
       std::fprintf(stderr, "  %-18s %-6s %7.3fs  %s\n", r.stage.c_str(), r.usable ? "ok" : "UNUSABLE", r.seconds,
                    r.why.c_str());
 }
@@ -343,7 +340,7 @@ int cmd_composite(const CompositeArgs& a) {
                   {"total_seconds", progress.elapsed()}};
   if (a.json_out) std::cout << summary.dump(2) << std::endl;
   else {
-    if (!g_quiet)
+    if (!Progress::all_silenced())
       std::fprintf(stderr, "render %.2fs, %.1f Mrays, %.0f%% of traced samples untouched by the prop (no second path)\n",
                    st.seconds, st.rays / 1e6, 100.0 * skipped);
     if (a.explain) {
@@ -825,7 +822,6 @@ int run_cli(int argc, char** argv) {
   // stdout is for results and --json.
   set_up_logging("propcam", quiet ? Verbosity::Quiet : verbose ? Verbosity::Verbose : Verbosity::Normal);
   Progress::silence_all(quiet);
-  g_quiet = quiet;
   try {
     inference::set_data_dir(data_dir);
     // Commands that infer scenes check their models now, not mid-way.

@@ -14,6 +14,7 @@ class Progress {
   explicit Progress(bool quiet = false) : quiet_(quiet), start_(std::chrono::steady_clock::now()) {}
   // propcam -q: no progress from any Progress.
   static void silence_all(bool silent) { silenced().store(silent); }
+  static bool all_silenced() { return silenced().load(); }
 
   void stage(const std::string& what) {
     if (quiet_ || silenced()) return;
