@@ -8,7 +8,7 @@
 #include <stdexcept>
 
 #include "luminance.h"
-#include "spherical_rectangle.h"
+#include "area_light_sampler.h"
 
 namespace propcam::render {
 namespace {
@@ -183,61 +183,75 @@ bool AreaLight::emits() const {
          emits_radiance(radiance);
 }
 
-namespace {
-
-std::optional<detail::SphericalRectangle> seen_as_rectangle(const AreaLight& light, const Vector3f& from) {
-  return detail::SphericalRectangle::seen_from(from.cast<double>(), light.corner.cast<double>(),
-                                               light.edge_u.cast<double>(), light.edge_v.cast<double>());
+LightSample AreaLight::sample(const Vector3f& from, float u1, float u2) const {
+  return detail::AreaLightSampler(*this).sample(from, u1, u2);
 }
 
-}  // namespace
+bool AreaLight::intersect(const Vector3f& origin, const Vector3f& direction, float& t, float& pdf) const {
+  return detail::AreaLightSampler(*this).intersect(origin, direction, t, pdf);
+}
 
-LightSample AreaLight::sample(const Vector3f& from, float u1, float u2) const {
+namespace detail {
+
+AreaLightSampler::AreaLightSampler(const AreaLight& light)
+    : corner_(light.corner.cast<double>()),
+      edge_u_(light.edge_u.cast<double>()),
+      edge_v_(light.edge_v.cast<double>()),
+      area_normal_(edge_u_.cross(edge_v_)),
+      area_(area_normal_.norm()),
+      radiance_(light.radiance),
+      emits_(light.emits()) {
+  if (emits_) rectangle_ = RectangleFrame::of(corner_, edge_u_, edge_v_);
+}
+
+std::optional<SphericalRectangle> AreaLightSampler::seen_from(const Vector3d& from) const {
+  if (!rectangle_) return std::nullopt;
+  return SphericalRectangle::seen_from(from, *rectangle_);
+}
+
+LightSample AreaLightSampler::sample(const Vector3f& from, float u1, float u2) const {
   LightSample out;
-  if (!emits()) return out;
+  if (!emits_) return out;
   // A rectangle is sampled by solid angle where the parametrisation holds,
   // a parallelogram (or a rectangle seen from too far or too flat) by area.
-  const auto rectangle = seen_as_rectangle(*this, from);
-  const Vector3d point = rectangle ? rectangle->sample(u1, u2)
-                                   : Vector3d(corner.cast<double>() + u1 * edge_u.cast<double>() + u2 * edge_v.cast<double>());
-  Vector3d to = point - from.cast<double>();
+  const Vector3d from_d = from.cast<double>();
+  const auto rectangle = seen_from(from_d);
+  const Vector3d point = rectangle ? rectangle->sample(u1, u2) : Vector3d(corner_ + u1 * edge_u_ + u2 * edge_v_);
+  Vector3d to = point - from_d;
   const double dist2 = to.squaredNorm();
   if (!(dist2 > kMinLightDistance * kMinLightDistance)) return out;
   const double dist = std::sqrt(dist2);
   to /= dist;
-  const Vector3d n_area = edge_u.cast<double>().cross(edge_v.cast<double>());
-  const double area = n_area.norm();
-  const double cos_light = -to.dot(n_area) / area;
+  const double cos_light = -to.dot(area_normal_) / area_;
   if (!(cos_light > kMinLightCosine)) return out;  // behind or edge-on
   out.direction = to.cast<float>();
   out.distance = static_cast<float>(dist);
-  out.radiance = radiance;
-  out.pdf = static_cast<float>(rectangle ? 1.0 / rectangle->solid_angle() : dist2 / (cos_light * area));
+  out.radiance = radiance_;
+  out.pdf = static_cast<float>(rectangle ? 1.0 / rectangle->solid_angle() : dist2 / (cos_light * area_));
   return out;
 }
 
-bool AreaLight::intersect(const Vector3f& origin, const Vector3f& direction, float& t, float& pdf) const {
-  if (!emits()) return false;
+bool AreaLightSampler::intersect(const Vector3f& origin, const Vector3f& direction, float& t, float& pdf) const {
+  if (!emits_) return false;
   const Vector3d o = origin.cast<double>(), w = direction.cast<double>().normalized();
-  const Vector3d eu = edge_u.cast<double>(), ev = edge_v.cast<double>();
-  const Vector3d n_area = eu.cross(ev);
-  const double area = n_area.norm();
-  const double cos_light = -w.dot(n_area) / area;
+  const double cos_light = -w.dot(area_normal_) / area_;
   if (!(cos_light > kMinLightCosine)) return false;  // parallel, or arriving at the back
-  const double distance = (corner.cast<double>() - o).dot(n_area) / w.dot(n_area);
+  const double distance = (corner_ - o).dot(area_normal_) / w.dot(area_normal_);
   if (!(distance > kMinLightDistance)) return false;
   // Parallelogram coordinates of the hit: solve [eu ev] (s, t) = q in the plane.
-  const Vector3d q = o + distance * w - corner.cast<double>();
-  const double uu = eu.dot(eu), uv = eu.dot(ev), vv = ev.dot(ev);
+  const Vector3d q = o + distance * w - corner_;
+  const double uu = edge_u_.dot(edge_u_), uv = edge_u_.dot(edge_v_), vv = edge_v_.dot(edge_v_);
   const double det = uu * vv - uv * uv;  // = area^2 > 0
-  const double s = (vv * q.dot(eu) - uv * q.dot(ev)) / det;
-  const double r = (uu * q.dot(ev) - uv * q.dot(eu)) / det;
+  const double s = (vv * q.dot(edge_u_) - uv * q.dot(edge_v_)) / det;
+  const double r = (uu * q.dot(edge_v_) - uv * q.dot(edge_u_)) / det;
   if (s < 0.0 || s > 1.0 || r < 0.0 || r > 1.0) return false;
   t = static_cast<float>(distance);
-  const auto rectangle = seen_as_rectangle(*this, origin);
-  pdf = static_cast<float>(rectangle ? 1.0 / rectangle->solid_angle() : distance * distance / (cos_light * area));
+  const auto rectangle = seen_from(o);
+  pdf = static_cast<float>(rectangle ? 1.0 / rectangle->solid_angle() : distance * distance / (cos_light * area_));
   return std::isfinite(pdf);
 }
+
+}  // namespace detail
 
 bool SpotCone::valid() const {
   return direction.allFinite() && direction.norm() > 0.f && std::isfinite(half_angle) && std::isfinite(blend);

@@ -12,39 +12,79 @@ using Eigen::Vector3d;
 // Where 1 - h^2 is this small the row's height goes to the far edge directly.
 constexpr double kMinOneMinusH2 = 1e-12;
 
-double angle_between_planes(const Vector3d& a, const Vector3d& b) { return std::acos(std::clamp(-a.dot(b), -1.0, 1.0)); }
+// An angle held as its cosine and sine: adding angles is multiplying these,
+// so the four inner angles are summed with two products and one atan2 instead
+// of four acos (and without the cancellation of 2 pi against their sum).
+struct UnitAngle {
+  double c, s;
+  UnitAngle operator*(const UnitAngle& o) const { return {c * o.c - s * o.s, s * o.c + c * o.s}; }
+  // The angle in [0, 2 pi).
+  double radians() const {
+    const double a = std::atan2(s, c);
+    return a < 0.0 ? a + 2.0 * std::numbers::pi : a;
+  }
+};
+
+// The inner angle between two edge planes from the z components of their
+// normals: in the rectangle's frame adjacent normals meet with -cos = nz_a nz_b.
+UnitAngle inner_angle(double nz_a, double nz_b) {
+  const double c = std::clamp(-nz_a * nz_b, -1.0, 1.0);
+  return {c, std::sqrt(std::max(0.0, 1.0 - c * c))};
+}
 
 }  // namespace
 
+std::optional<RectangleFrame> RectangleFrame::of(const Vector3d& corner, const Vector3d& edge_u, const Vector3d& edge_v) {
+  RectangleFrame f;
+  f.length_u = edge_u.norm();
+  f.length_v = edge_v.norm();
+  if (!(f.length_u > 0.0 && f.length_v > 0.0) || !std::isfinite(f.length_u) || !std::isfinite(f.length_v) ||
+      !corner.allFinite())
+    return std::nullopt;
+  if (std::abs(edge_u.dot(edge_v)) > kMaxRectangleEdgeCosine * f.length_u * f.length_v) return std::nullopt;
+  f.corner = corner;
+  f.x = edge_u / f.length_u;
+  f.y = edge_v / f.length_v;
+  f.z = f.x.cross(f.y);
+  return f;
+}
+
 std::optional<SphericalRectangle> SphericalRectangle::seen_from(const Vector3d& from, const Vector3d& corner,
                                                                 const Vector3d& edge_u, const Vector3d& edge_v) {
-  const double length_u = edge_u.norm(), length_v = edge_v.norm();
-  if (!(length_u > 0.0 && length_v > 0.0) || !from.allFinite()) return std::nullopt;
-  if (std::abs(edge_u.dot(edge_v)) > kMaxRectangleEdgeCosine * length_u * length_v) return std::nullopt;
+  const auto frame = RectangleFrame::of(corner, edge_u, edge_v);
+  if (!frame) return std::nullopt;
+  return seen_from(from, *frame);
+}
+
+std::optional<SphericalRectangle> SphericalRectangle::seen_from(const Vector3d& from, const RectangleFrame& rectangle) {
+  if (!from.allFinite()) return std::nullopt;
   SphericalRectangle r;
   r.origin_ = from;
-  r.x_ = edge_u / length_u;
-  r.y_ = edge_v / length_v;
-  r.z_ = r.x_.cross(r.y_);
-  const Vector3d d = corner - from;
+  r.x_ = rectangle.x;
+  r.y_ = rectangle.y;
+  r.z_ = rectangle.z;
+  const Vector3d d = rectangle.corner - from;
   // In the local frame the rectangle lies at z = z0 < 0: the point is on the side z faces.
   r.z0_ = d.dot(r.z_);
   if (!(r.z0_ < 0.0)) return std::nullopt;
   r.x0_ = d.dot(r.x_);
   r.y0_ = d.dot(r.y_);
-  r.x1_ = r.x0_ + length_u;
-  r.y1_ = r.y0_ + length_v;
-  const Vector3d v00(r.x0_, r.y0_, r.z0_), v01(r.x0_, r.y1_, r.z0_), v10(r.x1_, r.y0_, r.z0_), v11(r.x1_, r.y1_, r.z0_);
-  // Normals of the four planes through the point and an edge, and the
-  // spherical rectangle's inner angles between them.
-  const Vector3d n0 = v00.cross(v10).normalized(), n1 = v10.cross(v11).normalized();
-  const Vector3d n2 = v11.cross(v01).normalized(), n3 = v01.cross(v00).normalized();
-  const double g0 = angle_between_planes(n0, n1), g1 = angle_between_planes(n1, n2);
-  const double g2 = angle_between_planes(n2, n3), g3 = angle_between_planes(n3, n0);
-  r.b0_ = n0.z();
-  r.b1_ = n2.z();
-  r.k_ = 2.0 * std::numbers::pi - g2 - g3;
-  r.solid_angle_ = g0 + g1 - r.k_;
+  r.x1_ = r.x0_ + rectangle.length_u;
+  r.y1_ = r.y0_ + rectangle.length_v;
+  // The planes through the point and each edge (y = y0, x = x1, y = y1,
+  // x = x0, in turn) have normals (0, z0, -y0), (-z0, 0, x1), (0, -z0, y1)
+  // and (z0, 0, -x0), normalised; only their z components are needed.
+  const double z0_2 = r.z0_ * r.z0_;
+  const double nz0 = -r.y0_ / std::sqrt(z0_2 + r.y0_ * r.y0_), nz1 = r.x1_ / std::sqrt(z0_2 + r.x1_ * r.x1_);
+  const double nz2 = r.y1_ / std::sqrt(z0_2 + r.y1_ * r.y1_), nz3 = -r.x0_ / std::sqrt(z0_2 + r.x0_ * r.x0_);
+  const UnitAngle g01 = inner_angle(nz0, nz1) * inner_angle(nz1, nz2);
+  const UnitAngle g23 = inner_angle(nz2, nz3) * inner_angle(nz3, nz0);
+  r.b0_ = nz0;
+  r.b1_ = nz2;
+  r.k_ = 2.0 * std::numbers::pi - g23.radians();
+  // The four angles' sum less 2 pi, read from their product (in (0, 2 pi) for
+  // any point in front of the rectangle).
+  r.solid_angle_ = (g01 * g23).radians();
   if (!(r.solid_angle_ >= kMinSphericalRectangleSolidAngle && r.solid_angle_ <= kMaxSphericalRectangleSolidAngle))
     return std::nullopt;
   return r;

@@ -21,12 +21,24 @@ constexpr double kMaxSphericalRectangleSolidAngle = 6.2;
 // sampled by area instead).
 constexpr double kMaxRectangleEdgeCosine = 1e-4;
 
+// The rectangle corner + s*edge_u + t*edge_v in its own orthonormal frame
+// (x along edge_u, y along edge_v, z = x cross y): what does not depend on the
+// point it is seen from, derived once per light.
+struct RectangleFrame {
+  Eigen::Vector3d corner, x, y, z;
+  double length_u = 0, length_v = 0;
+  // Empty when the edges are not those of a rectangle (zero, non-finite or
+  // skewed beyond kMaxRectangleEdgeCosine).
+  static std::optional<RectangleFrame> of(const Eigen::Vector3d& corner, const Eigen::Vector3d& edge_u,
+                                          const Eigen::Vector3d& edge_v);
+};
+
 class SphericalRectangle {
  public:
-  // The rectangle corner + s*edge_u + t*edge_v seen from `from`; empty when it
-  // cannot be sampled this way (not a rectangle, `from` in or behind its
-  // plane on the side opposite to edge_u x edge_v, a solid angle outside the
-  // bounds above).
+  // The rectangle seen from `from`; empty when it cannot be sampled this way
+  // (`from` in or behind its plane on the side opposite to z, or a solid
+  // angle outside the bounds above).
+  static std::optional<SphericalRectangle> seen_from(const Eigen::Vector3d& from, const RectangleFrame& rectangle);
   static std::optional<SphericalRectangle> seen_from(const Eigen::Vector3d& from, const Eigen::Vector3d& corner,
                                                      const Eigen::Vector3d& edge_u, const Eigen::Vector3d& edge_v);
 

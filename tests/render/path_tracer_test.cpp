@@ -5,6 +5,7 @@
 #include <numbers>
 
 #include "bsdf.h"
+#include "propcam/render/mesh_shapes.h"
 #include "propcam/render/path_tracer.h"
 #include "propcam/render/synthetic_room.h"
 #include "sampling.h"
@@ -136,6 +137,35 @@ TEST(PathTracer, SameSeedGivesIdenticalImages) {
   EXPECT_EQ(cv::norm(a, b, cv::NORM_INF), 0.0);
   EXPECT_TRUE(cv::checkRange(a));
   EXPECT_GT(cv::mean(a)[0], 0.01);
+}
+
+// Russian roulette ends only paths whose throughput has fallen below 0.1. In
+// a closed box with no light every path bounces to the limit when the walls'
+// albedo is 0.9 (0.9^5 > 0.1): exactly pixels x spp x (bounces + 1) closest-hit
+// rays. With walls of albedo 0.2 (0.2^2 < 0.1) paths end early.
+TEST(PathTracer, RouletteSparesPathsAboveATenthOfTheirThroughput) {
+  constexpr int kSize = 8, kSpp = 4, kBounces = 5;
+  const auto rays_in_box = [&](float albedo) {
+    Mesh box;
+    Material grey;
+    grey.albedo = Eigen::Vector3f::Constant(albedo);
+    box.materials.push_back(grey);
+    add_box(box, {-1.f, 0.f, -1.f}, {1.f, 2.f, 1.f}, 0);
+    add_quad(box, {-1.f, 0.f, 1.f}, {1.f, 0.f, 1.f}, {1.f, 0.f, -1.f}, {-1.f, 0.f, -1.f}, 0, 1.f);  // its floor
+    Scene scene;
+    scene.add_mesh(box, Layer::Background);
+    scene.commit();
+    RenderSettings settings;
+    settings.samples_per_pixel = kSpp;
+    settings.max_bounces = kBounces;
+    RenderStats stats;
+    const cv::Mat image = render_image(scene, looking_down(kSize, 1.0), LightRig{}, settings, &stats);
+    EXPECT_EQ(cv::norm(image, cv::NORM_INF), 0.0);  // nothing lights it
+    return stats.rays;
+  };
+  const uint64_t every_bounce = uint64_t{kSize} * kSize * kSpp * (kBounces + 1);
+  EXPECT_EQ(rays_in_box(0.9f), every_bounce);
+  EXPECT_LT(rays_in_box(0.2f), every_bounce * 3 / 4);
 }
 
 // Tolerances of the rendered analytic cases below (Monte Carlo noise at
