@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Builds the IBL library (inference/README.md, "Out-of-view light") into
+# Builds the IBL library (docs/ibl.md, "Library") into
 # build/ibl_library: blender-data's panoramas (read from their Debian path) and
 # the project's procedural skies and rooms, downsampled and annotated by code.
 # Not committed: it is derived from installed data and rebuilt in ~1 s.

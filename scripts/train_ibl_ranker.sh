@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Retrains the IBL ranker (inference/README.md, "Out-of-view light") into
+# Retrains the IBL ranker (docs/ibl.md, "Ranking") into
 # inference/data/ibl_ranker.yml.gz. The IBL library is built in memory:
 # blender-data's panoramas (from their Debian path), the eighteen CC0 maps of
 # the npm package @pmndrs/assets (fetched and decoded by

@@ -117,7 +117,7 @@ GeometryEstimate infer_geometry(const cv::Mat& photo, const InferenceOptions& op
   stage("scene_class");
   StageReport class_report;
   // The sky rule where it sees sky, else k-NN on rendered and real
-  // references (inference/README.md, "Indoor/outdoor by k-NN"); the rule
+  // references (inference/README.md, "Scene class"); the rule
   // alone when the references cannot be read.
   std::string refs_why;
   const std::string refs_path = options.scene_references.empty() ? default_scene_reference_path() : options.scene_references;

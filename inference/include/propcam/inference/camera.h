@@ -88,7 +88,7 @@ struct CameraEstimate {
 // points fix it (see CameraOptions::estimate_principal_point). Vanishing
 // points are found in the image (homogeneous: points at infinity are
 // ordinary) and the frame refined on endpoint distances; the method and its NYU-VP evaluation are in
-// inference/README.md. Deterministic for a seed, bounded in time, always
+// docs/camera_stage.md. Deterministic for a seed, bounded in time, always
 // finite; throws std::invalid_argument for a non-positive size.
 CameraEstimate estimate_camera(const std::vector<LineSegment>& lines, int width, int height,
                                const CameraOptions& options = {});

@@ -26,7 +26,7 @@ namespace propcam::inference {
 // The paper's weights (indoors 100, 0.5, 0.1; outdoors 200, 10, 1) belong to
 // its own normalisation of each term. Ours are chosen the way it chose them, by
 // a grid search on held-out generator scenes (`propcam bench geometry`; see
-// inference/README.md).
+// docs/geometry.md).
 struct DepthPriorWeights {
   double manhattan = 1.0;      // lambda_m
   double orientation = 0.1;    // lambda_o
@@ -36,7 +36,7 @@ struct DepthPriorWeights {
 };
 
 struct DepthSolveOptions {
-  int width = 60;               // solve grid width (height keeps the aspect ratio); see inference/README.md for the sweep
+  int width = 60;               // solve grid width (height keeps the aspect ratio); see docs/geometry.md for the sweep
   int max_iterations = 20;      // Levenberg-Marquardt iterations (the sweep: 10 is nearly as good at half the time)
   // Wall-clock guard against a hang only: the iteration bound is what normally
   // stops the solve, so the result does not depend on the machine's load.

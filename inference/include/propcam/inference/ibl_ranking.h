@@ -5,7 +5,7 @@
 // SVM-rank whose margin is the rendering-based IBL distance (ibl_distance.h);
 // the best-ranked panoramas' light regions, turned so the matched view looks
 // where the photo looks, become candidate sources for the intensity fit.
-// Method, substitutes and measurements: inference/README.md, "Out-of-view light".
+// Method, substitutes and measurements: docs/ibl.md.
 #pragma once
 
 #include <Eigen/Core>

@@ -33,7 +33,7 @@ struct IntensityFitOptions {
   // with exponents 1.8, 2.2 and 2.6) the paper's weight let gamma absorb the
   // mismatch of estimated albedo and geometry (exponents 3.5-4.1 for all
   // three), so the default keeps the response near gamma0 unless the photo
-  // strongly disagrees (inference/README.md, "Camera response").
+  // strongly disagrees (docs/intensities.md, "Camera response").
   double lambda_gamma_per_pixel = 0.1;
   double gamma0 = 1.0 / 2.2;   // prior camera response exponent (encoded = linear^gamma)
   bool fit_gamma = true;       // false: gamma stays gamma0

@@ -84,7 +84,7 @@ struct LightingOptions {
   // the fit sees at or above this (streets and cities measure 0.1-0.25).
   // Below it the fit trades a darker albedo for a brighter sun, up to 3x the
   // true one, and the prop gets that sun (`propcam bench lighting --streets
-  // 100 --sweeps sun_strength`; inference/README.md).
+  // 100 --sweeps sun_strength`; docs/streets_sun.md).
   double min_mean_albedo = 0.15;
   // Outdoors, weigh only the sun candidate the photo calls for (sun_choice.h);
   // off, the fit weighs them all and keeps the one that alone fits best.
@@ -97,7 +97,7 @@ struct LightingOptions {
   // The fit then weighs sky and sun together, at that ratio. Off: the
   // hypotheses above, chosen by sun_from_shading. Off by default: the search
   // needs an albedo that keeps the shadows out, and the estimated one does
-  // not (`propcam bench lighting --sweeps sun`; inference/README.md).
+  // not (`propcam bench lighting --sweeps sun`; docs/streets_sun.md).
   bool sun_from_shadows = false;
   // With the search on: true, the search's sun must pass its test and is
   // weighed with the sky at the ratio its shadows set; false, the best
@@ -109,7 +109,7 @@ struct LightingOptions {
   // the composite: the buildings beside and behind the camera shade the near
   // street. Off by default: with the sun the shading picks today, their
   // shadows cost more than they give (`propcam bench lighting --sweeps
-  // facades`: streets composite 0.589 -> 0.692; inference/README.md).
+  // facades`: streets composite 0.589 -> 0.692; docs/streets_sun.md).
   bool hidden_facades = false;
   HiddenFacadeOptions facades;
   // Indoors, the room is closed around what the photo shows and the lights
@@ -178,7 +178,7 @@ cv::Mat environment_from_photo(const cv::Mat& photo_linear, const render::Pinhol
 // hemisphere takes the sky's colour and brightness; the lower hemisphere keeps
 // the Khan wrap of the photo (the ground). (Grading it from horizon to zenith
 // by the CIE standard skies was measured worse on the generator's streets:
-// `propcam bench lighting`, inference/README.md.)
+// `propcam bench lighting`, docs/streets_sun.md.)
 cv::Mat environment_with_sky(const cv::Mat& photo_linear, const render::PinholeCamera& camera, int width,
                              const SkyEstimate& sky);
 

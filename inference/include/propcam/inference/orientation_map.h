@@ -3,7 +3,7 @@
 // three Manhattan orientations each pixel's surface has, from line sweeps.
 // Karsch et al. 2014 (section 4) use it as the sparse orientation prior of the
 // depth solve (E_o). Method, simplifications and measurements:
-// inference/README.md, "Orientation map".
+// docs/orientation_map.md.
 #pragma once
 
 #include <cstdint>

@@ -1,5 +1,5 @@
 // Which sun candidate a street photo calls for, from the candidates' basis
-// renders and the seen sky's (inference/README.md, "Streets: the choice of
+// renders and the seen sky's (docs/streets_sun.md, "The choice of
 // sun by what the sky cannot light").
 #pragma once
 
