@@ -293,7 +293,7 @@ RoomScore run_pipeline(const cv::Mat& photo, const cv::Mat& true_normals, const 
 }
 
 TEST(OrientationMap, SyntheticRoomsThroughThePipeline) {
-  // Reduced resolution and samples keep this quick; the README's table is
+  // Reduced resolution and samples keep this quick; docs/orientation_map.md's table is
   // the full-resolution run (DISABLED_SyntheticRoomTable below). Seed 2 is
   // the hardest of 1-8 there. Measured here: seed 2 coverage 0.47, accuracy
   // 0.875; seed 4: 0.63, 0.876 (lower than at 640x480 with 64 spp, where
@@ -315,7 +315,7 @@ TEST(OrientationMap, SyntheticRoomsThroughThePipeline) {
   }
 }
 
-// The README table: photos written by `propcam synth --seed N -o DIR/seedN`
+// docs/orientation_map.md's table: photos written by `propcam synth --seed N -o DIR/seedN`
 // (N = 1..8), then
 //   PROPCAM_OM_SYNTH=DIR build/release/tests/inference_tests
 //     --gtest_also_run_disabled_tests --gtest_filter='*SyntheticRoomTable*'
