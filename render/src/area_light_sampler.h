@@ -16,7 +16,6 @@ class AreaLightSampler {
  public:
   explicit AreaLightSampler(const AreaLight& light);
 
-  bool emits() const { return emits_; }
   // As AreaLight::sample and AreaLight::intersect.
   LightSample sample(const Eigen::Vector3f& from, float u1, float u2) const;
   bool intersect(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction, float& t, float& pdf) const;
@@ -28,6 +27,9 @@ class AreaLightSampler {
   Eigen::Vector3d corner_, edge_u_, edge_v_;
   Eigen::Vector3d area_normal_;  // edge_u x edge_v: the emitting side, length = area
   double area_ = 0.0;
+  // The edges' Gram matrix and its determinant (= area^2), for a hit's
+  // parallelogram coordinates.
+  double uu_ = 0.0, uv_ = 0.0, vv_ = 0.0, gram_det_ = 0.0;
   std::optional<RectangleFrame> rectangle_;  // empty for a skewed parallelogram
   Eigen::Vector3f radiance_;
   bool emits_ = false;

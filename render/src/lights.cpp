@@ -199,6 +199,10 @@ AreaLightSampler::AreaLightSampler(const AreaLight& light)
       edge_v_(light.edge_v.cast<double>()),
       area_normal_(edge_u_.cross(edge_v_)),
       area_(area_normal_.norm()),
+      uu_(edge_u_.dot(edge_u_)),
+      uv_(edge_u_.dot(edge_v_)),
+      vv_(edge_v_.dot(edge_v_)),
+      gram_det_(uu_ * vv_ - uv_ * uv_),
       radiance_(light.radiance),
       emits_(light.emits()) {
   if (emits_) rectangle_ = RectangleFrame::of(corner_, edge_u_, edge_v_);
@@ -240,10 +244,8 @@ bool AreaLightSampler::intersect(const Vector3f& origin, const Vector3f& directi
   if (!(distance > kMinLightDistance)) return false;
   // Parallelogram coordinates of the hit: solve [eu ev] (s, t) = q in the plane.
   const Vector3d q = o + distance * w - corner_;
-  const double uu = edge_u_.dot(edge_u_), uv = edge_u_.dot(edge_v_), vv = edge_v_.dot(edge_v_);
-  const double det = uu * vv - uv * uv;  // = area^2 > 0
-  const double s = (vv * q.dot(edge_u_) - uv * q.dot(edge_v_)) / det;
-  const double r = (uu * q.dot(edge_v_) - uv * q.dot(edge_u_)) / det;
+  const double s = (vv_ * q.dot(edge_u_) - uv_ * q.dot(edge_v_)) / gram_det_;
+  const double r = (uu_ * q.dot(edge_v_) - uv_ * q.dot(edge_u_)) / gram_det_;
   if (s < 0.0 || s > 1.0 || r < 0.0 || r > 1.0) return false;
   t = static_cast<float>(distance);
   const auto rectangle = seen_from(o);

@@ -520,12 +520,17 @@ void differential_sample(const PathIntegrator& integrator, const PinholeCamera& 
 
 }  // namespace
 
-void accumulate_differential_pixel(const Scene& scene, const PinholeCamera& camera, const LightRig& lights,
-                                   const RenderSettings& settings, int x, int y, int first_sample, int count,
-                                   DifferentialPixel& pixel) {
+void accumulate_differential_pixels(const Scene& scene, const PinholeCamera& camera, const LightRig& lights,
+                                    const RenderSettings& settings, const cv::Rect& rect, int first_sample, int count,
+                                    std::vector<DifferentialPixel>& pixels) {
+  if (pixels.size() != static_cast<size_t>(rect.area()))
+    throw std::invalid_argument("accumulate_differential_pixels: need one pixel per pixel of the rectangle");
   const PathIntegrator integrator(scene, lights, settings, settings.light_layers);
-  for (int s = first_sample; s < first_sample + count; ++s)
-    differential_sample(integrator, camera, settings.seed, x, y, s, pixel);
+  size_t i = 0;
+  for (int y = rect.y; y < rect.br().y; ++y)
+    for (int x = rect.x; x < rect.br().x; ++x, ++i)
+      for (int s = first_sample; s < first_sample + count; ++s)
+        differential_sample(integrator, camera, settings.seed, x, y, s, pixels[i]);
 }
 
 DifferentialRender render_differential(const Scene& scene, const PinholeCamera& camera, const LightRig& lights,

@@ -72,11 +72,8 @@ void RenderSession::render_tile(int index, int first_sample, int count) {
   std::vector<DifferentialPixel> local;
   local.reserve(tile.rect.area());
   for (int y = tile.rect.y; y < tile.rect.br().y; ++y)
-    for (int x = tile.rect.x; x < tile.rect.br().x; ++x) {
-      DifferentialPixel p = pixels_[static_cast<size_t>(y) * camera_.width + x];
-      accumulate_differential_pixel(scene_, camera_, lights_, settings_.render, x, y, first_sample, count, p);
-      local.push_back(p);
-    }
+    for (int x = tile.rect.x; x < tile.rect.br().x; ++x) local.push_back(pixels_[static_cast<size_t>(y) * camera_.width + x]);
+  accumulate_differential_pixels(scene_, camera_, lights_, settings_.render, tile.rect, first_sample, count, local);
   // Error: RMS over pixels of the standard error of the per-sample change
   // luminance, relative to the tile's brightness in the photo.
   double se2 = 0.0, brightness = 0.0;

@@ -49,13 +49,6 @@ std::optional<RectangleFrame> RectangleFrame::of(const Vector3d& corner, const V
   return f;
 }
 
-std::optional<SphericalRectangle> SphericalRectangle::seen_from(const Vector3d& from, const Vector3d& corner,
-                                                                const Vector3d& edge_u, const Vector3d& edge_v) {
-  const auto frame = RectangleFrame::of(corner, edge_u, edge_v);
-  if (!frame) return std::nullopt;
-  return seen_from(from, *frame);
-}
-
 std::optional<SphericalRectangle> SphericalRectangle::seen_from(const Vector3d& from, const RectangleFrame& rectangle) {
   if (!from.allFinite()) return std::nullopt;
   SphericalRectangle r;

@@ -39,8 +39,6 @@ class SphericalRectangle {
   // (`from` in or behind its plane on the side opposite to z, or a solid
   // angle outside the bounds above).
   static std::optional<SphericalRectangle> seen_from(const Eigen::Vector3d& from, const RectangleFrame& rectangle);
-  static std::optional<SphericalRectangle> seen_from(const Eigen::Vector3d& from, const Eigen::Vector3d& corner,
-                                                     const Eigen::Vector3d& edge_u, const Eigen::Vector3d& edge_v);
 
   double solid_angle() const { return solid_angle_; }
   // The point of the rectangle in the direction given by (u1, u2) in [0,1)^2;

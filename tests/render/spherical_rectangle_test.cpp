@@ -2,6 +2,7 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <optional>
 #include <random>
 
 #include "spherical_rectangle.h"
@@ -25,6 +26,11 @@ double triangle_solid_angle(const Vector3d& a, const Vector3d& b, const Vector3d
 struct Rectangle {
   Vector3d corner, edge_u, edge_v;
   Vector3d at(double s, double t) const { return corner + s * edge_u + t * edge_v; }
+  // Seen from the origin.
+  std::optional<SphericalRectangle> seen() const {
+    const auto frame = detail::RectangleFrame::of(corner, edge_u, edge_v);
+    return frame ? SphericalRectangle::seen_from(Vector3d::Zero(), *frame) : std::nullopt;
+  }
 };
 
 // A rectangle of random size, place and turn, and a point in front of it.
@@ -48,7 +54,7 @@ TEST(SphericalRectangle, SolidAngleMatchesTwoTriangles) {
   for (const double distance : {0.05, 0.3, 1.0, 5.0, 40.0, 300.0}) {
     for (int i = 0; i < 200; ++i) {
       const Rectangle r = random_rectangle(rng, distance);
-      const auto seen = SphericalRectangle::seen_from(Vector3d::Zero(), r.corner, r.edge_u, r.edge_v);
+      const auto seen = r.seen();
       const double expected = triangle_solid_angle(r.at(0, 0), r.at(1, 0), r.at(1, 1)) +
                               triangle_solid_angle(r.at(0, 0), r.at(1, 1), r.at(0, 1));
       if (!seen) {
@@ -72,7 +78,7 @@ TEST(SphericalRectangle, SamplesCoverTheRectangleEdgeToEdge) {
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   for (int i = 0; i < 100; ++i) {
     const Rectangle r = random_rectangle(rng, 0.2 + 3.0 * unit(rng));
-    const auto seen = SphericalRectangle::seen_from(Vector3d::Zero(), r.corner, r.edge_u, r.edge_v);
+    const auto seen = r.seen();
     ASSERT_TRUE(seen);
     const auto coordinates = [&](const Vector3d& p) {
       const Vector3d q = p - r.corner;

@@ -111,9 +111,12 @@ struct DifferentialPixel {
   uint64_t rays = 0, second_paths = 0, untouched = 0;
 };
 
-void accumulate_differential_pixel(const Scene& scene, const PinholeCamera& camera, const LightRig& lights,
-                                   const RenderSettings& settings, int x, int y, int first_sample, int count,
-                                   DifferentialPixel& pixel);
+// Adds samples [first_sample, first_sample + count) to every pixel of `rect`;
+// `pixels` holds rect's pixels row by row (rect.area() of them). One call per
+// tile: the integrator (and each light's derived sampling data) is set up once.
+void accumulate_differential_pixels(const Scene& scene, const PinholeCamera& camera, const LightRig& lights,
+                                    const RenderSettings& settings, const cv::Rect& rect, int first_sample, int count,
+                                    std::vector<DifferentialPixel>& pixels);
 
 // Debevec's additive differential compositing, per sample:
 // I_final = M*I_obj + (1-M)*(I_b + I_obj - I_noobj), clamped at 0.
