@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Renderer bench against Blender Cycles 3.4 (docs/renderer_vs_cycles.md): the
 # same scenes (box_area: a room under a ceiling panel; small_bulb: the room
-# under a 1.5 cm bulb; glossy_env: plastic and metal props under courtyard.exr)
-# rendered by both; a Cycles reference at --ref-spp, timed Cycles renders at
+# under a 1.5 cm bulb; emissive_mesh: the room lit by an emissive globe and
+# tube; glossy_env: plastic and metal props under courtyard.exr) rendered by
+# both; a Cycles reference at --ref-spp, timed Cycles renders at
 # --cycles-spp, timed `propcam render` at 1, 2, 4, ... --max-spp; prints per
 # scene the time propcam needs to reach each Cycles render's RMSE, the variance
 # proxy RMSE^2 x spp and the image means (void above 2%: exit 3); writes
@@ -17,7 +18,7 @@
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 root="$(cd "$here/.." && pwd)"
-out="" size=320x240 threads=2 scenes=box_area,small_bulb,glossy_env ref_spp=4096
+out="" size=320x240 threads=2 scenes=box_area,small_bulb,emissive_mesh,glossy_env ref_spp=4096
 cycles_spp=64,256,1024 max_spp=4096 bounces=4
 propcam="${PROPCAM:-$root/build/release/firmware/propcam}"
 while [[ $# -gt 0 ]]; do
@@ -30,7 +31,7 @@ while [[ $# -gt 0 ]]; do
     --cycles-spp) cycles_spp="$2"; shift 2 ;;
     --max-spp) max_spp="$2"; shift 2 ;;
     --bounces) bounces="$2"; shift 2 ;;
-    -h|--help) sed -n '2,16p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,17p' "$0"; exit 0 ;;
     *) echo "cycles_bench: unknown argument $1" >&2; exit 2 ;;
   esac
 done

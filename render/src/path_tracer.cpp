@@ -11,6 +11,8 @@
 
 #include "area_light_sampler.h"
 #include "bsdf.h"
+#include "emissive_lights.h"
+#include "light_stand_ins.h"
 #include "sampler.h"
 #include "sampling.h"
 
@@ -42,6 +44,9 @@ constexpr float kRouletteThroughput = 0.1f;
 // (2D), and Russian roulette (1D).
 constexpr int kCameraDimensions = 1;
 constexpr int kBsdfAndRouletteDimensions = 3;
+// Emissive triangles, when the scene has some to sample: which triangle (1D)
+// and where on it (2D), after the rig's lights.
+constexpr int kEmissiveDimensions = 2;
 // Light a prop adds to the photo's surfaces (bounce, reflected highlights,
 // caustics) is clamped per sample to this luminance, about the photo's white:
 // at interactive sample counts, a rare path from a floor pixel via a mirror
@@ -79,7 +84,9 @@ class PathIntegrator {
         layers_(layers),
         caustics_(settings.caustics),
         prop_interreflection_(settings.prop_interreflection),
-        area_samplers_(lights.area_lights.begin(), lights.area_lights.end()) {}
+        area_samplers_(lights.area_lights.begin(), lights.area_lights.end()),
+        emissive_(scene.emissive_lights()),
+        sample_emissive_(!emissive_.empty() && !detail::rig_stands_for_every_emitter(lights, emissive_)) {}
 
   // The slot for emissive surfaces, after the rig's lights (LightRig order).
   int emissive_slot() const { return lights_.count(); }
@@ -99,7 +106,12 @@ class PathIntegrator {
     // throughput without the n^2 radiance scaling that cancels on exit.
     float eta_scale = 1.f;
     float previous_bsdf_pdf = 0.f;
-    const int dimensions_per_bounce = lights_.count() + kBsdfAndRouletteDimensions;
+    // The last shading point and its normal: a BSDF-sampled ray that meets an
+    // emissive triangle weighs itself against the density light sampling from
+    // there had for it.
+    Eigen::Vector3f previous_position = Eigen::Vector3f::Zero(), previous_normal = Eigen::Vector3f::Zero();
+    const int dimensions_per_bounce =
+        lights_.count() + (sample_emissive_ ? kEmissiveDimensions : 0) + kBsdfAndRouletteDimensions;
     for (int bounce = 0; bounce <= max_bounces_; ++bounce) {
       sampler.set_dimension(kCameraDimensions + bounce * dimensions_per_bounce);
       RayHit hit;
@@ -122,11 +134,11 @@ class PathIntegrator {
         after_background = true;
       }
       if (sp.material->type == Material::Type::Emissive) {
-        // An emissive surface is found by BSDF sampling only (nothing samples
-        // it directly), unless a light of the rig stands in front of it: then
-        // that light stands for it (synthetic rooms' panels) and it is not
-        // counted twice.
-        if (!light_in_front) add(emissive_slot(), sp.material->emission);
+        // Unless a light of the rig stands in front of it (synthetic rooms'
+        // panels): then that light stands for it and it is not counted twice.
+        if (!light_in_front)
+          add(emissive_slot(), sp.material->emission * emissive_hit_weight(hit, sp, bounce == 0, previous_position,
+                                                                           previous_normal, previous_bsdf_pdf));
         break;
       }
       if (bounce >= max_bounces_) break;
@@ -147,6 +159,8 @@ class PathIntegrator {
       throughput = throughput.cwiseProduct(bs.f) * (std::abs(bs.wi.z()) / bs.pdf);
       if (bs.transmitted) eta_scale *= bsdf.eta() * bsdf.eta();
       previous_bsdf_pdf = bs.pdf;
+      previous_position = sp.position;
+      previous_normal = sp.shading_normal;
       if (bounce + 1 >= kRussianRouletteStartBounce) {
         const float survive = std::min(1.f, throughput.maxCoeff() * eta_scale / kRouletteThroughput);
         if (sampler.get1d() >= survive) break;
@@ -168,6 +182,35 @@ class PathIntegrator {
   }
 
  private:
+  // A light of the rig (area, sphere, disc) that the ray origin + t*direction
+  // meets before t_hit, by emitted_along's rule: such a light stands for the
+  // emissive surface behind it.
+  bool rig_light_before(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction, float t_hit,
+                        bool with_props) const {
+    float t = 0.f, pdf = 0.f;
+    const auto in_front = [&](float t_light) { return t_light * (1.f - kShadowShortening) < t_hit; };
+    for (const detail::AreaLightSampler& light : area_samplers_)
+      if (light.intersect(origin, direction, t, pdf) && in_front(t)) return true;
+    for (const SphereLight& light : lights_.sphere_lights)
+      if ((with_props || !light.prop_only) && light.intersect(origin, direction, t, pdf) && in_front(t)) return true;
+    for (const DiscLight& light : lights_.disc_lights)
+      if (light.intersect(origin, direction, t, pdf) && in_front(t)) return true;
+    return false;
+  }
+
+  // The MIS weight of an emissive surface met by a ray: 1 for the camera's, or
+  // where light sampling could not have chosen it; else the power heuristic
+  // against the density next-event estimation had for it from the last vertex.
+  float emissive_hit_weight(const RayHit& hit, const SurfacePoint& sp, bool camera,
+                            const Eigen::Vector3f& from, const Eigen::Vector3f& from_normal, float bsdf_pdf) const {
+    if (camera || !sample_emissive_) return 1.f;
+    const int index = emissive_.index_of(hit.mesh, hit.triangle);
+    if (index < 0) return 1.f;
+    const Eigen::Vector3f to = sp.position - from;
+    const float light_pdf = emissive_.pmf(from, from_normal, index) * emissive_.pdf(index, from, to, to.norm());
+    return detail::power_heuristic(bsdf_pdf, light_pdf);
+  }
+
   // True when the segment is blocked. In the world with props, a block that
   // exists only because of a prop marks the path as touched.
   bool shadowed(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction, float distance, bool with_props,
@@ -234,14 +277,19 @@ class PathIntegrator {
       add(lights_.environment_index(), environment->radiance(direction) * weight(environment->pdf(direction)));
   }
 
-  // Next-event estimation: one sample toward every light, MIS-weighted
-  // against the BSDF's density for the same direction. Dielectrics also
+  // Next-event estimation: one sample toward every light of the rig and one
+  // toward an emissive triangle, MIS-weighted against the BSDF's density for
+  // the same direction. Dielectrics also
   // receive light through the surface (wi.z < 0).
   template <typename Add>
   void direct_light(const SurfacePoint& sp, const Frame& frame, const Eigen::Vector3f& wo, const Bsdf& bsdf,
                     SobolSampler& sampler,
                     bool with_props, PathResult& result, const Add& add) const {
-    const auto connect = [&](const LightSample& ls) -> Eigen::Vector3f {
+    // `surface_point`: the sampled point of a light that is geometry (an
+    // emissive triangle, lifted off it toward the shading point); the shadow
+    // ray then ends just before it. Lights that are not geometry end it a
+    // fraction short of the sampled distance.
+    const auto connect = [&](const LightSample& ls, const Eigen::Vector3f* surface_point = nullptr) -> Eigen::Vector3f {
       if (!(ls.pdf > 0.f) || !std::isfinite(ls.pdf)) return Eigen::Vector3f::Zero();
       const float cos_geometric = ls.direction.dot(sp.geometric_normal);
       const Eigen::Vector3f wi = frame.to_local(ls.direction);
@@ -251,8 +299,19 @@ class PathIntegrator {
       if (!(f.maxCoeff() > 0.f)) return Eigen::Vector3f::Zero();
       const Eigen::Vector3f origin =
           offset_origin(sp.position, cos_geometric > 0.f ? sp.geometric_normal : Eigen::Vector3f(-sp.geometric_normal));
-      const float distance = std::isinf(ls.distance) ? kInfinity : ls.distance * (1.f - kShadowShortening);
-      if (shadowed(origin, ls.direction, distance, with_props, result)) return Eigen::Vector3f::Zero();
+      if (surface_point) {
+        // The shadow ray from the lifted origin to the lifted light point: a
+        // ray along ls.direction from the lifted origin would pass the
+        // emitter's surface when the lift exceeds the shortening.
+        Eigen::Vector3f to = *surface_point - origin;
+        const float length = to.norm();
+        if (!(length > 0.f)) return Eigen::Vector3f::Zero();
+        to /= length;
+        if (shadowed(origin, to, length * (1.f - kShadowShortening), with_props, result)) return Eigen::Vector3f::Zero();
+      } else {
+        const float distance = std::isinf(ls.distance) ? kInfinity : ls.distance * (1.f - kShadowShortening);
+        if (shadowed(origin, ls.direction, distance, with_props, result)) return Eigen::Vector3f::Zero();
+      }
       // A delta light's density is infinite: BSDF sampling never finds it, weight 1.
       const float weight = detail::power_heuristic(ls.delta ? kInfinity : ls.pdf, bsdf.pdf(wo, wi));
       return f.cwiseProduct(ls.radiance) * (std::abs(wi.z()) * weight / ls.pdf);
@@ -294,6 +353,24 @@ class PathIntegrator {
       ls.radiance = lights_.environment->radiance(ls.direction);
       add(index, connect(ls));
     }
+    if (sample_emissive_) {
+      // One emissive triangle, picked by what it may deliver here (the light BVH).
+      const float u_pick = sampler.get1d();
+      const Eigen::Vector2f u = sampler.get2d();
+      const detail::EmissiveLights::Pick pick = emissive_.pick(sp.position, sp.shading_normal, u_pick);
+      if (pick.index < 0) return;
+      const detail::EmissiveTriangle& triangle = emissive_.triangle(pick.index);
+      if (triangle.prop && !with_props) return;  // absent from this world
+      LightSample ls = emissive_.sample(pick.index, sp.position, u.x(), u.y());
+      if (!(ls.pdf > 0.f) || rig_light_before(sp.position, ls.direction, ls.distance, with_props)) return;
+      ls.pdf *= pick.pmf;
+      const Eigen::Vector3f on_light = sp.position + ls.direction * ls.distance;
+      const Eigen::Vector3f lifted =
+          offset_origin(on_light, triangle.normal.dot(ls.direction) < 0.f ? triangle.normal : Eigen::Vector3f(-triangle.normal));
+      const Eigen::Vector3f arriving = connect(ls, &lifted);
+      if (triangle.prop && arriving.maxCoeff() > 0.f) result.touched_prop = true;
+      add(emissive_slot(), arriving);
+    }
   }
 
   const Scene& scene_;
@@ -304,6 +381,8 @@ class PathIntegrator {
   bool caustics_;
   bool prop_interreflection_;
   std::vector<detail::AreaLightSampler> area_samplers_;  // lights_.area_lights, derived once
+  const detail::EmissiveLights& emissive_;
+  bool sample_emissive_;
 };
 
 // Runs `render_tile(x0, y0, x1, y1)` over the image in tiles on worker threads.

@@ -2,10 +2,13 @@
 
 #include <embree3/rtcore.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
 #include <string>
+
+#include "emissive_lights.h"
 
 namespace propcam::render {
 namespace {
@@ -107,7 +110,8 @@ void set_instance_transform(RTCGeometry instance, const Eigen::Affine3f& xf) {
 
 }  // namespace
 
-Scene::Scene() : embree_(std::make_unique<EmbreeState>()) {
+Scene::Scene()
+    : embree_(std::make_unique<EmbreeState>()), emissive_lights_(std::make_unique<detail::EmissiveLights>()) {
   embree_->device = rtcNewDevice("threads=1");  // our own threads trace; no TBB pool
   if (!embree_->device) throw std::runtime_error("cannot create Embree device");
   rtcSetDeviceErrorFunction(embree_->device, embree_error, &embree_->last_error);
@@ -181,6 +185,10 @@ void Scene::set_prop_transform(int mesh_index, const Eigen::Affine3f& world_from
   update_bounds();
   if (committed_) rtcCommitScene(embree_->full);  // the top level only
   embree_->check("Scene::set_prop_transform");
+  const auto& materials = entry.mesh.materials;
+  if (committed_ && std::any_of(materials.begin(), materials.end(),
+                                [](const Material& m) { return m.type == Material::Type::Emissive; }))
+    emissive_lights_ = std::make_unique<detail::EmissiveLights>(*this);
 }
 
 Eigen::AlignedBox3f Scene::world_bounds(int index) const {
@@ -202,6 +210,7 @@ void Scene::commit() {
   rtcCommitScene(embree_->full);
   embree_->check("Scene::commit");
   committed_ = true;
+  emissive_lights_ = std::make_unique<detail::EmissiveLights>(*this);
 }
 
 bool Scene::intersect(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction, float t_max,

@@ -3,8 +3,9 @@
 scripts/cycles_bench.sh:
 
   blender -b --factory-startup --python scripts/blender/cycles_bench.py -- \
-      --out DIR --propcam PATH [--size 320x240] [--threads 2] [--scenes box_area,small_bulb,glossy_env]
-      [--ref-spp 4096] [--cycles-spp 64,256,1024] [--max-spp 4096] [--bounces 4]
+      --out DIR --propcam PATH [--size 320x240] [--threads 2]
+      [--scenes box_area,small_bulb,emissive_mesh,glossy_env] [--ref-spp 4096]
+      [--cycles-spp 64,256,1024] [--max-spp 4096] [--bounces 4]
 
 Per scene: a Cycles reference (two halves of ref-spp/2 with other seeds, so
 its own noise is known), timed Cycles renders at --cycles-spp and timed
@@ -88,6 +89,25 @@ def small_bulb(t):
     return [c]
 
 
+def emissive_mesh(t):
+    """The room lit only by emissive meshes, no lamp objects: an opal globe (a
+    smooth 48 x 24 UV sphere of radius 7 cm, 2208 triangles) at 1.0 m near the
+    left wall, out of view, and a 60 cm tube (radius 1.25 cm, 24 flat sides,
+    capped: 92 triangles) 2.3 m up on the wall behind the camera. Together 1.5
+    times box_area's panel's power (pi L x area), for about box_area's image
+    mean; the globe has three quarters of it. Cycles samples the triangles as
+    lights; propcam meets them by BSDF sampling only (render/README.md)."""
+    room(t)
+    g, r, n, rings = (-1.6, 1.0, 0.8), 0.07, 48, 24
+    a, b, rt, nt = (-0.2, 2.3, 2.42), (0.4, 2.3, 2.42), 0.0125, 24
+    area_g = 4.0 * math.pi * units.uv_sphere_effective_radius(r, n, rings) ** 2
+    area_t = 2.0 * nt * rt * math.sin(math.pi / nt) * (math.dist(a, b) + rt * math.cos(math.pi / nt))  # sides, caps
+    power = 1.5 * 12.0 * 1.0  # / pi, per unit of WARM
+    t.emissive_sphere(g, r, WARM, 0.75 * power / area_g, n, rings)  # radiance 220
+    t.emissive_tube(a, b, rt, WARM, 0.25 * power / area_t, nt)  # radiance 94
+    return [tuple(np.add(g, r * e)) for e in np.vstack([np.eye(3), -np.eye(3)])] + [a, b]
+
+
 def glossy_env(t):
     """Glossy props on a diffuse ground under courtyard.exr (max luminance 53)."""
     t.box((-20.0, -0.5, -20.0), (20.0, 0.0, 20.0), 0.5)
@@ -102,7 +122,8 @@ def glossy_env(t):
     return []
 
 
-SCENES = {"box_area": box_area, "small_bulb": small_bulb, "glossy_env": glossy_env}
+SCENES = {"box_area": box_area, "small_bulb": small_bulb, "emissive_mesh": emissive_mesh,
+          "glossy_env": glossy_env}
 
 
 # --- Cycles --------------------------------------------------------------------

@@ -89,7 +89,50 @@ class TwinScene:
         normals, so both renderers shade the same polygons the same way."""
         i = self._next()
         spec = material_spec(material)
-        obj = bcommon.uv_sphere("s%d" % i, center, radius, bcommon.prop_material("d%d" % i, spec), segments, rings)
+        self._uv_sphere(i, center, radius, spec, bcommon.prop_material("d%d" % i, spec), segments, rings)
+
+    def emissive_sphere(self, center, radius, color, strength, segments=48, rings=24):
+        """uv_sphere glowing with radiance strength * colour (_emissive)."""
+        i = self._next()
+        spec, mat = self._emissive(i, color, strength)
+        self._uv_sphere(i, center, radius, spec, mat, segments, rings)
+
+    def emissive_tube(self, a, b, radius, color, strength, segments=24):
+        """A closed cylinder from a to b (flat polygons, capped, outward), glowing
+        with radiance strength * colour (_emissive)."""
+        a, b = np.asarray(a, float), np.asarray(b, float)
+        d = (b - a) / np.linalg.norm(b - a)
+        u = np.cross(d, [0.0, 1.0, 0.0] if abs(d[1]) < 0.9 else [1.0, 0.0, 0.0])
+        u /= np.linalg.norm(u)
+        v = np.cross(d, u)  # u x v = d
+        ring = [radius * (math.cos(2 * math.pi * k / segments) * u + math.sin(2 * math.pi * k / segments) * v)
+                for k in range(segments)]
+        verts = [tuple(a + p) for p in ring] + [tuple(b + p) for p in ring]
+        n = segments
+        faces = [(k, (k + 1) % n, n + (k + 1) % n, n + k) for k in range(n)]
+        faces += [tuple(reversed(range(n))), tuple(range(n, 2 * n))]
+        i = self._next()
+        spec, mat = self._emissive(i, color, strength)
+        fn = "mesh_%d.obj" % i
+        write_obj(os.path.join(self.dir, fn), verts, triangles(faces))
+        self.meshes.append({"file": fn, "material": spec})
+        bcommon.mesh_object("t%d" % i, verts, faces, mat)
+
+    @staticmethod
+    def _emissive(i, color, strength):
+        """(SCENE.json material, Blender material) of an emissive mesh: ours
+        `emissive` of radiance strength * colour (units.mesh_emission_radiance),
+        Cycles an Emission shader of that strength and colour on both sides
+        (as ours) that is sampled as a light ("Multiple Importance" on)."""
+        m = bcommon.emission_material("e%d" % i, color, strength, one_sided=False, emitter_aov=False)
+        if hasattr(m, "emission_sampling"):  # Blender 4.0+
+            m.emission_sampling = "AUTO"
+        else:
+            m.cycles.sample_as_light = True
+        return {"type": "emissive", "emission": units.mesh_emission_radiance(color, strength)}, m
+
+    def _uv_sphere(self, i, center, radius, spec, mat, segments, rings):
+        obj = bcommon.uv_sphere("s%d" % i, center, radius, mat, segments, rings)
         me = obj.data
         c = np.asarray(center, float)
         verts = [np.asarray(units.from_blender(v.co)) + c for v in me.vertices]

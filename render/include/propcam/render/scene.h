@@ -15,6 +15,10 @@
 
 namespace propcam::render {
 
+namespace detail {
+class EmissiveLights;  // emissive_lights.h (internal)
+}
+
 enum class Layer { Background, Prop };
 
 struct RayHit {
@@ -72,6 +76,10 @@ class Scene {
                 bool with_props) const;
   SurfacePoint surface(const RayHit& hit, const Eigen::Vector3f& origin, const Eigen::Vector3f& direction) const;
 
+  // The emissive triangles as lights, at the meshes' current places: made by
+  // commit() and remade when a prop with emissive triangles moves.
+  const detail::EmissiveLights& emissive_lights() const { return *emissive_lights_; }
+
  private:
   struct Entry {
     Mesh mesh;
@@ -84,6 +92,7 @@ class Scene {
   struct EmbreeState;
   std::vector<Entry> meshes_;
   std::unique_ptr<EmbreeState> embree_;
+  std::unique_ptr<detail::EmissiveLights> emissive_lights_;
   Eigen::AlignedBox3f bounds_;
   int prop_count_ = 0;
   bool committed_ = false;
