@@ -279,8 +279,8 @@ class PathIntegrator {
 
   // Next-event estimation: one sample toward every light of the rig and one
   // toward an emissive triangle, MIS-weighted against the BSDF's density for
-  // the same direction. Dielectrics also
-  // receive light through the surface (wi.z < 0).
+  // the same direction. Dielectrics also receive light through the surface
+  // (wi.z < 0).
   template <typename Add>
   void direct_light(const SurfacePoint& sp, const Frame& frame, const Eigen::Vector3f& wo, const Bsdf& bsdf,
                     SobolSampler& sampler,
