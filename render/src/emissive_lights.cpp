@@ -5,6 +5,7 @@
 #include <numbers>
 #include <numeric>
 
+#include "luminance.h"
 #include "propcam/render/scene.h"
 #include "spherical_triangle.h"
 
@@ -26,8 +27,6 @@ constexpr double kMinTriangleLightCosine = 1e-7;
 constexpr float kFarClusterSin = 0.1f;
 // The largest float below 1: u stays in [0, 1) when it is rescaled per level.
 constexpr float kOneMinusEpsilon = 0x1.fffffep-1f;
-
-float luminance(const Vector3f& c) { return 0.2126f * c.x() + 0.7152f * c.y() + 0.0722f * c.z(); }
 
 float safe_sqrt(float x) { return std::sqrt(std::max(0.f, x)); }
 

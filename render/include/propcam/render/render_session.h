@@ -92,6 +92,16 @@ class RenderSession {
 
  private:
   void render_tile(int index, int first_sample, int count);
+  // Calls f(x, y, pixel) for every pixel with samples, tile by tile.
+  template <typename F>
+  void for_each_traced_pixel(const F& f) const {
+    for (size_t t = 0; t < tiles_.size(); ++t) {
+      const cv::Rect& r = tiles_[t].rect;
+      const std::vector<DifferentialPixel>& pixels = tile_pixels_[t];
+      for (size_t i = 0; i < pixels.size(); ++i)
+        if (pixels[i].samples > 0) f(r.x + static_cast<int>(i) % r.width, r.y + static_cast<int>(i) / r.width, pixels[i]);
+    }
+  }
 
   const Scene& scene_;
   const PinholeCamera& camera_;
@@ -100,7 +110,7 @@ class RenderSession {
   SessionSettings settings_;
   PropReach reach_;
   std::vector<TileStatus> tiles_;
-  std::vector<DifferentialPixel> pixels_;
+  std::vector<std::vector<DifferentialPixel>> tile_pixels_;  // per tile, row by row; empty until traced
   // The denoiser's guides, traced once on first use (over affected tiles).
   mutable std::mutex guides_mutex_;
   mutable DenoiseGuides guides_;
