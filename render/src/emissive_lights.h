@@ -5,8 +5,9 @@
 // normals and power, and a point descends toward the child whose bound
 // promises the more light (power over squared distance, shrunk by the angles
 // at which the bound can face the point and the point's normal can face the
-// bound). The picked triangle is sampled by solid angle (spherical_triangle.h)
-// where that is accurate, else by area.
+// bound); from a node that looks small from the point (a far cluster) the
+// triangle is picked by power alone. The picked triangle is sampled by solid
+// angle (spherical_triangle.h) where that is accurate, else by area.
 //
 // Emission is two-sided (as the path tracer counts an emissive surface met
 // from either side).
