@@ -28,6 +28,9 @@ constexpr float kFarClusterSin = 0.1f;
 // The largest float below 1: u stays in [0, 1) when it is rescaled per level.
 constexpr float kOneMinusEpsilon = 0x1.fffffep-1f;
 
+// What a triangle emits, up to a constant factor: its luminance times its area.
+float triangle_power(const EmissiveTriangle& t) { return luminance(t.emission) * t.area; }
+
 float safe_sqrt(float x) { return std::sqrt(std::max(0.f, x)); }
 
 // cos(max(0, a - b)) and sin(max(0, a - b)) from the angles' cosines and sines.
@@ -47,7 +50,7 @@ LightBounds LightBounds::of(const EmissiveTriangle& t) {
   b.box.extend(t.c);
   b.w = t.normal;
   b.cos_theta_o = 1.f;
-  b.power = luminance(t.emission) * t.area;
+  b.power = triangle_power(t);
   return b;
 }
 
@@ -168,7 +171,7 @@ EmissiveLights::EmissiveLights(const Scene& scene) {
   build(0, static_cast<int>(triangles_.size()), 0, 0);
   power_.resize(triangles_.size());
   power_prefix_.assign(triangles_.size() + 1, 0.0);
-  for (size_t i = 0; i < triangles_.size(); ++i) power_[i] = LightBounds::of(triangles_[i]).power;
+  for (size_t i = 0; i < triangles_.size(); ++i) power_[i] = triangle_power(triangles_[i]);
   for (size_t k = 0; k < order_.size(); ++k) power_prefix_[k + 1] = power_prefix_[k] + power_[order_[k]];
 }
 

@@ -57,6 +57,10 @@ Eigen::Vector3f offset_origin(const Eigen::Vector3f& p, const Eigen::Vector3f& n
   return p + normal * (kRayOffsetAbsolute + kRayOffsetRelative * p.cwiseAbs().maxCoeff());
 }
 
+// A light met at t_light counts as in front of a surface met at t_hit by the
+// shadow rays' rule: blocked only by a surface nearer than the shortened distance.
+bool light_in_front_of(float t_light, float t_hit) { return t_light * (1.f - kShadowShortening) < t_hit; }
+
 // Surfaces whose reflection is sharp enough to focus light (caustics).
 constexpr float kCausticMaxRoughness = 0.3f;
 
@@ -188,7 +192,7 @@ class PathIntegrator {
   bool rig_light_before(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction, float t_hit,
                         bool with_props) const {
     float t = 0.f, pdf = 0.f;
-    const auto in_front = [&](float t_light) { return t_light * (1.f - kShadowShortening) < t_hit; };
+    const auto in_front = [&](float t_light) { return light_in_front_of(t_light, t_hit); };
     for (const detail::AreaLightSampler& light : area_samplers_)
       if (light.intersect(origin, direction, t, pdf) && in_front(t)) return true;
     for (const SphereLight& light : lights_.sphere_lights)
@@ -236,9 +240,7 @@ class PathIntegrator {
     const auto weight = [&](float light_pdf) { return camera ? 1.f : detail::power_heuristic(bsdf_pdf, light_pdf); };
     const auto seen = [&](bool visible_to_camera) { return !camera || visible_to_camera; };
     float t = 0.f, light_pdf = 0.f;
-    // The same visibility rule as the shadow rays: blocked only by a surface
-    // nearer than the shortened distance.
-    const auto in_front = [&](float t_light) { return t_light * (1.f - kShadowShortening) < t_hit; };
+    const auto in_front = [&](float t_light) { return light_in_front_of(t_light, t_hit); };
     int index = 0;
     for (const AreaLight& light : lights_.area_lights) {
       if (area_samplers_[index].intersect(origin, direction, t, light_pdf) && in_front(t)) {
@@ -299,19 +301,19 @@ class PathIntegrator {
       if (!(f.maxCoeff() > 0.f)) return Eigen::Vector3f::Zero();
       const Eigen::Vector3f origin =
           offset_origin(sp.position, cos_geometric > 0.f ? sp.geometric_normal : Eigen::Vector3f(-sp.geometric_normal));
+      Eigen::Vector3f shadow_direction = ls.direction;
+      float shadow_length = ls.distance;
       if (surface_point) {
-        // The shadow ray from the lifted origin to the lifted light point: a
-        // ray along ls.direction from the lifted origin would pass the
-        // emitter's surface when the lift exceeds the shortening.
-        Eigen::Vector3f to = *surface_point - origin;
-        const float length = to.norm();
-        if (!(length > 0.f)) return Eigen::Vector3f::Zero();
-        to /= length;
-        if (shadowed(origin, to, length * (1.f - kShadowShortening), with_props, result)) return Eigen::Vector3f::Zero();
-      } else {
-        const float distance = std::isinf(ls.distance) ? kInfinity : ls.distance * (1.f - kShadowShortening);
-        if (shadowed(origin, ls.direction, distance, with_props, result)) return Eigen::Vector3f::Zero();
+        // From the lifted origin to the lifted light point: a ray along
+        // ls.direction from the lifted origin would pass the emitter's
+        // surface when the lift exceeds the shortening.
+        shadow_direction = *surface_point - origin;
+        shadow_length = shadow_direction.norm();
+        if (!(shadow_length > 0.f)) return Eigen::Vector3f::Zero();
+        shadow_direction /= shadow_length;
       }
+      const float distance = std::isinf(shadow_length) ? kInfinity : shadow_length * (1.f - kShadowShortening);
+      if (shadowed(origin, shadow_direction, distance, with_props, result)) return Eigen::Vector3f::Zero();
       // A delta light's density is infinite: BSDF sampling never finds it, weight 1.
       const float weight = detail::power_heuristic(ls.delta ? kInfinity : ls.pdf, bsdf.pdf(wo, wi));
       return f.cwiseProduct(ls.radiance) * (std::abs(wi.z()) * weight / ls.pdf);
