@@ -46,14 +46,17 @@ bool identical(const cv::Mat& a, const cv::Mat& b) {
   return a.size() == b.size() && a.type() == b.type() && cv::norm(a, b, cv::NORM_INF) == 0.0;
 }
 
-TEST_F(RenderSessionTest, PassesOfDoublingSamplesEqualOneRenderOfTheSameSamples) {
+// Doubling to 16 samples, then half as many again each pass, the last pass
+// cut to the limit.
+TEST_F(RenderSessionTest, PassesOfGrowingSamplesEqualOneRenderOfTheSameSamples) {
   settings_.cull_tiles = false;
+  settings_.max_samples_per_pixel = 40;
   RenderSession session(scene_, room_.camera, room_.lights, photo_, prop_bounds_, settings_);
   std::vector<int> samples;
   while (!session.finished()) samples.push_back(session.run_pass().max_samples);
-  EXPECT_EQ(samples, (std::vector<int>{1, 2, 4, 8}));
+  EXPECT_EQ(samples, (std::vector<int>{1, 2, 4, 8, 16, 24, 36, 40}));
   RenderSettings one = settings_.render;
-  one.samples_per_pixel = 8;
+  one.samples_per_pixel = 40;
   const DifferentialRender direct = render_differential(scene_, room_.camera, room_.lights, one);
   EXPECT_TRUE(identical(session.differential().change, direct.change));
   EXPECT_TRUE(identical(session.differential().coverage, direct.coverage));

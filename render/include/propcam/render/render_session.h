@@ -1,4 +1,4 @@
-// Progressive differential rendering in tiles: passes of doubling samples,
+// Progressive differential rendering in tiles: passes of growing samples,
 // a composite snapshot and a per-tile error estimate after each pass, cancel
 // and resume at any time, deterministic for a seed. Tiles the prop cannot
 // affect (see prop_reach.h) are never traced and keep the photo.
@@ -69,8 +69,8 @@ class RenderSession {
   RenderSession(const Scene& scene, const PinholeCamera& camera, const LightRig& lights, const cv::Mat& photo_linear,
                 const Eigen::AlignedBox3f& prop_bounds, const SessionSettings& settings);
 
-  // One pass: every unfinished tile doubles its samples (the first pass gives
-  // one). `cancel` is polled between tiles; a cancelled pass keeps the tiles
+  // One pass: every unfinished tile doubles its samples up to 16 (the first
+  // pass gives one), then adds half of them (24, 36, 54, ...). `cancel` is polled between tiles; a cancelled pass keeps the tiles
   // it finished, and the next call resumes where it stopped.
   PassReport run_pass(const std::atomic<bool>* cancel = nullptr);
   bool finished() const;
