@@ -189,9 +189,21 @@ void check_image_size(const std::string& path, int width, int height, int channe
                              std::to_string(kMaxImageFloatBytes >> 20) + " MiB as float)");
 }
 
+// A missing file or a folder, said plainly (OpenImageIO's message for a
+// folder is its first format's, e.g. "Not a PNG file").
+void check_is_a_file(const std::string& path) {
+  std::error_code ec;
+  const std::filesystem::file_status status = std::filesystem::status(path, ec);
+  if (status.type() == std::filesystem::file_type::not_found)
+    throw std::runtime_error("image '" + path + "' does not exist");
+  if (status.type() == std::filesystem::file_type::directory)
+    throw std::runtime_error("'" + path + "' is a folder, not an image file");
+}
+
 }  // namespace
 
 cv::Mat read_image_float(const std::string& path) {
+  check_is_a_file(path);
   auto input = OIIO::ImageInput::open(path);
   if (!input) throw std::runtime_error("cannot open image '" + path + "': " + OIIO::geterror());
   const OIIO::ImageSpec& spec = input->spec();
@@ -201,11 +213,18 @@ cv::Mat read_image_float(const std::string& path) {
   cv::Mat image(spec.height, spec.width, CV_32FC(spec.nchannels));
   if (!input->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, image.data))
     throw std::runtime_error("cannot read image '" + path + "': " + input->geterror());
+  // libjpeg reads a cut-off JPEG to the end, fills the rest grey and only
+  // warns ("Premature end of JPEG file"): OpenImageIO keeps that as an error
+  // while reporting success.
+  if (input->has_error())
+    throw std::runtime_error("image '" + path + "' is damaged or cut short (" + input->geterror() +
+                             "); copy the file again or take the photo again");
   input->close();
   return image;
 }
 
 cv::Mat load_photo_linear(const std::string& path) {
+  check_is_a_file(path);
   auto input = OIIO::ImageInput::open(path);
   if (!input) throw std::runtime_error("cannot open photo '" + path + "': " + OIIO::geterror());
   const OIIO::ImageSpec spec = input->spec();

@@ -20,6 +20,7 @@
 #include <spdlog/spdlog.h>
 
 #include "capture_commands.h"
+#include "cli_checks.h"
 #include "export_commands.h"
 #include "run_command.h"
 #include "light_training.h"
@@ -67,6 +68,7 @@ Eigen::Vector3f parse_rgb(const std::string& text) {
   char c1 = 0, c2 = 0;
   if (!(in >> r >> c1 >> g >> c2 >> b) || c1 != ',' || c2 != ',')
     throw std::invalid_argument("--albedo expects R,G,B (linear, 0..1), got '" + text + "'");
+  for (const float c : {r, g, b}) inference::require_in_range(c, inference::kAlbedoRange, "an --albedo component");
   return {r, g, b};
 }
 
@@ -161,6 +163,9 @@ int cmd_infer(const InferArgs& a) {
 // only); the renderer's max_bounces is one more (path_tracer.h).
 constexpr int kDefaultCliBounces = 3;
 constexpr int kMaxCliBounces = 63;
+constexpr int kMaxCliSpp = 65536;
+constexpr int kExitBadArguments = 2;
+constexpr int kMaxCliThreads = 1024;
 int renderer_bounces(int cli_bounces) {
   if (cli_bounces < 0 || cli_bounces > kMaxCliBounces)
     throw std::invalid_argument("--bounces must be in 0.." + std::to_string(kMaxCliBounces));
@@ -189,9 +194,10 @@ render::LightScales parse_light_scales(const std::string& text, int count) {
     float scale = 1.f;
     char eq = 0;
     std::istringstream one(item);
-    if (!(one >> index >> eq >> scale) || eq != '=' || index < 0 || index >= count || !(scale >= 0.f) || !std::isfinite(scale))
-      throw std::invalid_argument("--light-scale expects I=S pairs with 0 <= I < " + std::to_string(count) +
-                                  " and S >= 0, got '" + item + "'");
+    if (!(one >> index >> eq >> scale) || eq != '=' || index < 0 || index >= count ||
+        !inference::kLightScaleRange.contains(scale))
+      throw std::invalid_argument("--light-scale expects I=S pairs with 0 <= I < " + std::to_string(count) + " and S " +
+                                  inference::kLightScaleRange.describe() + ", got '" + item + "'");
     scales[index] = scale;
   }
   return scales;
@@ -257,7 +263,7 @@ int cmd_composite(const CompositeArgs& a) {
   render::PropPlacement placement;
   if (!parse_pair(a.at, placement.pixel_u, placement.pixel_v, ','))
     throw std::invalid_argument("--at expects U,V in pixels, got '" + a.at + "'");
-  if (a.spp <= 0 || a.spp > 65536) throw std::invalid_argument("--spp must be in 1..65536");
+  if (a.spp <= 0 || a.spp > kMaxCliSpp) throw std::invalid_argument("--spp must be in 1.." + std::to_string(kMaxCliSpp));
   const int max_bounces = renderer_bounces(a.bounces);
   MaterialOverride material;
   if (!a.material.empty()) material.type = a.material;
@@ -271,6 +277,9 @@ int cmd_composite(const CompositeArgs& a) {
   inference::SceneModel scene;
   if (!a.scene_dir.empty()) {
     scene = inference::load_scene(a.scene_dir);
+    if (scene.depth.empty())
+      throw std::invalid_argument("the scene folder '" + a.scene_dir + "' has no depth.exr: make it again with " +
+                                  "`propcam infer PHOTO -o " + a.scene_dir + "`");
   } else {
     scene = infer_with_progress(photo, a.photo, a.camera_height, a.lens, progress);
     if (!a.json_out) print_reports(scene);
@@ -511,7 +520,7 @@ constexpr int kMaxTimedPasses = 16;
 
 int cmd_render(const RenderArgs& a) {
   Progress progress(a.json_out);
-  if (a.spp <= 0 || a.spp > 65536) throw std::invalid_argument("--spp must be in 1..65536");
+  if (a.spp <= 0 || a.spp > kMaxCliSpp) throw std::invalid_argument("--spp must be in 1.." + std::to_string(kMaxCliSpp));
   if (a.threads < 0) throw std::invalid_argument("--threads must be >= 0 (0: all)");
   if (!(a.clamp >= 0) || !std::isfinite(a.clamp)) throw std::invalid_argument("--clamp must be a finite number >= 0 (0: off)");
   std::string ext = fs::path(a.out).extension().string();
@@ -612,10 +621,10 @@ int run_cli(int argc, char** argv) {
   infer->add_option("--lines", infer_args.lines_csv, "Run the camera stage on x1,y1,x2,y2 segments from a CSV file");
   infer->add_option("--size", infer_args.size, "Image size WxH for --lines");
   infer->add_option("--camera-height", infer_args.camera_height, "Camera height above the floor in metres")
-      ->check(CLI::PositiveNumber);
+      ->check(within(inference::kCameraHeightRange));
   infer->add_option("--focal", infer_args.lens.focal_px,
                     "Calibrated focal length in pixels at the photo's size (a prior for the camera stage)")
-      ->check(CLI::PositiveNumber);
+      ->check(within(inference::kFocalPxRange));
   infer->add_flag("--fixed-focal", infer_args.lens.fixed, "Use --focal as the focal length (estimate the rotation only)");
   infer->add_flag("--json", infer_args.json_out, "Machine-readable output on stdout");
 
@@ -625,19 +634,22 @@ int run_cli(int argc, char** argv) {
   composite->add_option("--scene", comp.scene_dir, "Scene folder from `propcam infer` (inferred if absent)");
   composite->add_option("--prop", comp.prop, "Preset name (see `propcam props`) or mesh file (OBJ)")->required();
   composite->add_option("--at", comp.at, "Pixel U,V of the support point under the prop")->required();
-  composite->add_option("--height", comp.height, "Prop height in metres (default: its natural size)");
-  composite->add_option("--yaw", comp.yaw, "Turn about the up axis, degrees counter-clockwise from above");
-  composite->add_option("--spp", comp.spp, "Samples per pixel");
-  composite->add_option("--bounces", comp.bounces, "Light bounces as Blender Cycles counts them (0: direct light only)");
+  composite->add_option("--height", comp.height, "Prop height in metres (default: its natural size)")
+      ->check(within(inference::kPropHeightRange));
+  composite->add_option("--yaw", comp.yaw, "Turn about the up axis, degrees counter-clockwise from above")
+      ->check(within(inference::kYawDegRange));
+  composite->add_option("--spp", comp.spp, "Samples per pixel")->check(CLI::Range(1, kMaxCliSpp));
+  composite->add_option("--bounces", comp.bounces, "Light bounces as Blender Cycles counts them (0: direct light only)")
+      ->check(CLI::Range(0, kMaxCliBounces));
   composite->add_option("--seed", comp.seed, "Random seed (same seed, same image)");
   composite->add_option("--material", comp.material,
                         "Override the prop's material: diffuse|plastic|glossy|metal|dielectric|glass")
       ->check(CLI::IsMember({"diffuse", "plastic", "glossy", "metal", "dielectric", "glass"}));
   composite->add_option("--albedo", comp.albedo, "Override the prop's albedo: R,G,B linear in 0..1");
   composite->add_option("--camera-height", comp.camera_height, "Camera height in metres when inferring")
-      ->check(CLI::PositiveNumber);
+      ->check(within(inference::kCameraHeightRange));
   composite->add_option("--focal", comp.lens.focal_px, "Calibrated focal length in pixels when inferring (a prior)")
-      ->check(CLI::PositiveNumber);
+      ->check(within(inference::kFocalPxRange));
   composite->add_flag("--fixed-focal", comp.lens.fixed, "Use --focal as the focal length when inferring");
   composite->add_option("--save-scene", comp.save_scene, "Also write the inferred scene folder here");
   composite->add_option("-o,--output", comp.out, "Composite image to write (PNG, JPEG or EXR)")->required();
@@ -648,9 +660,9 @@ int run_cli(int argc, char** argv) {
                         "emissive surfaces) on the prop and its shadows");
   composite->add_flag("--relight-scene", comp.relight_scene, "With --light-scale: relight the whole photo too");
   composite->add_option("--aperture", comp.aperture, "Depth of field: lens aperture diameter in metres (0: none)")
-      ->check(CLI::Range(0.0, 1.0));
+      ->check(within(inference::kApertureRange));
   composite->add_option("--focus", comp.focus, "Depth of field: focus distance in metres (default: the prop)")
-      ->check(CLI::PositiveNumber);
+      ->check(within(inference::kFocusDistanceRange));
   composite->add_flag("--no-cull", comp.no_cull, "Simulate everything: every tile, light and path (to measure what the plan saves)");
   composite->add_flag("--no-denoise", comp.no_denoise, "Keep the raw Monte Carlo change (no edge-aware filter of the prop's change)");
   composite->add_flag("--no-camera-match", comp.no_camera_match,
@@ -717,13 +729,17 @@ int run_cli(int argc, char** argv) {
   auto* render_cmd = app.add_subcommand("render", "Render a SCENE.json (camera, OBJ meshes, lights) to an image");
   render_cmd->add_option("scene", render_args.scene, "Scene file (see render/README.md)")->required();
   auto* spp_option = render_cmd->add_option("--spp", render_args.spp, "Samples per pixel");
+  constexpr inference::PhysicalRange kRenderSecondsRange{1e-3, 86400.0, "s"}, kClampRange{0.0, 1e30, ""};
   render_cmd->add_option("--time", render_args.time_budget, "Render passes of doubling spp for about S seconds")
-      ->check(CLI::PositiveNumber)
+      ->check(within(kRenderSecondsRange))
       ->excludes(spp_option);
-  render_cmd->add_option("--bounces", render_args.bounces, "Light bounces as Blender Cycles counts them (0: direct light only)");
-  render_cmd->add_option("--threads", render_args.threads, "Render threads (0: all hardware threads)");
+  render_cmd->add_option("--bounces", render_args.bounces, "Light bounces as Blender Cycles counts them (0: direct light only)")
+      ->check(CLI::Range(0, kMaxCliBounces));
+  render_cmd->add_option("--threads", render_args.threads, "Render threads (0: all hardware threads)")
+      ->check(CLI::Range(0, kMaxCliThreads));
   render_cmd->add_option("--clamp", render_args.clamp,
-                         "Largest luminance of one sample; brighter samples are scaled down (0: no clamp)");
+                         "Largest luminance of one sample; brighter samples are scaled down (0: no clamp)")
+      ->check(within(kClampRange));
   render_cmd->add_option("--seed", render_args.seed, "Random seed (same seed, same image)");
   render_cmd->add_option("-o,--output", render_args.out, "Image to write (EXR linear, or PNG/JPEG sRGB)")->required();
   render_cmd->add_flag("--json", render_args.json_out, "Machine-readable summary on stdout");
@@ -800,11 +816,15 @@ int run_cli(int argc, char** argv) {
       ->required()->check(CLI::ExistingFile);
   view->add_option("-o,--output", view_args.out, "Photo to write")->required();
   view->add_option("--size", view_args.size, "WxH");
-  view->add_option("--fov", view_args.fov, "Horizontal field of view, degrees")->check(CLI::Range(1.0, 170.0));
-  view->add_option("--yaw", view_args.yaw, "Degrees counter-clockwise from above; 0 looks at the panorama's centre column");
-  view->add_option("--pitch", view_args.pitch, "Degrees, positive looks up");
-  view->add_option("--roll", view_args.roll, "Degrees about the view axis");
-  view->add_option("--exposure", view_args.exposure_ev, "Exposure change in stops after auto exposure");
+  constexpr inference::PhysicalRange kFovDegRange{1.0, 170.0, "degrees"}, kPitchDegRange{-90.0, 90.0, "degrees"},
+      kRollDegRange{-180.0, 180.0, "degrees"}, kExposureEvRange{-30.0, 30.0, "stops"};
+  view->add_option("--fov", view_args.fov, "Horizontal field of view, degrees")->check(within(kFovDegRange));
+  view->add_option("--yaw", view_args.yaw, "Degrees counter-clockwise from above; 0 looks at the panorama's centre column")
+      ->check(within(inference::kYawDegRange));
+  view->add_option("--pitch", view_args.pitch, "Degrees, positive looks up")->check(within(kPitchDegRange));
+  view->add_option("--roll", view_args.roll, "Degrees about the view axis")->check(within(kRollDegRange));
+  view->add_option("--exposure", view_args.exposure_ev, "Exposure change in stops after auto exposure")
+      ->check(within(kExposureEvRange));
   view->add_flag("--json", view_args.json_out, "Print the camera as JSON");
 
   std::string console_tty = "/dev/tty0";
@@ -816,7 +836,9 @@ int run_cli(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // --help and --version exit 0; every bad argument exits 2, as the
+    // checks after parsing do (CLI11's own codes run from 101 to 116).
+    return app.exit(e) == 0 ? 0 : kExitBadArguments;
   }
   // Logs go to stderr, or to the journal with priorities under systemd;
   // stdout is for results and --json.
@@ -896,7 +918,7 @@ int run_cli(int argc, char** argv) {
     }
   } catch (const std::invalid_argument& e) {
     report_failure(std::string("propcam: ") + e.what());
-    return 2;
+    return kExitBadArguments;
   } catch (const std::exception& e) {
     report_failure(std::string("propcam: error: ") + e.what());
     return 1;

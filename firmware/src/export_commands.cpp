@@ -105,7 +105,15 @@ int run_export_command(const ExportArgs& a) {
   json results = json::array();
   bool any_spooled = false, any_failed = false;
   for (const auto& file : a.files) {
-    const ExportOutcome outcome = exporter.export_composite(item_from_file(file, a.layers));
+    // Each file on its own: one that cannot be read is reported and the
+    // rest of the batch still goes out.
+    ExportOutcome outcome;
+    try {
+      outcome = exporter.export_composite(item_from_file(file, a.layers));
+    } catch (const std::exception& e) {
+      outcome.kind = ExportOutcome::Kind::Failed;
+      outcome.message = std::string("not exported: ") + e.what();
+    }
     any_spooled = any_spooled || outcome.kind == ExportOutcome::Kind::Spooled;
     any_failed = any_failed || outcome.kind == ExportOutcome::Kind::Failed;
     results.push_back({{"input", file},

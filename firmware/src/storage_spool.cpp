@@ -1,6 +1,9 @@
 #include "storage_spool.h"
 
+#include <fcntl.h>
 #include <spdlog/spdlog.h>
+#include <sys/file.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cerrno>
@@ -88,6 +91,22 @@ bool starts_with(const std::string& text, const std::string& prefix) { return te
 
 }  // namespace
 
+// flock(2) on the spool folder: the kernel drops it when its holder dies,
+// so a killed exporter's leftovers become removable and a live one's never are.
+SpoolFolderLock::SpoolFolderLock(const fs::path& dir, Mode mode) {
+  fd_ = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd_ < 0) return;  // no folder to lock: nothing to share it with
+  const int operation = mode == Mode::Writing ? LOCK_SH : LOCK_EX | LOCK_NB;
+  int rc;
+  do rc = ::flock(fd_, operation);
+  while (rc != 0 && errno == EINTR);
+  held_ = rc == 0;
+}
+
+SpoolFolderLock::~SpoolFolderLock() {
+  if (fd_ >= 0) ::close(fd_);
+}
+
 std::uintmax_t SpoolEntry::bytes() const {
   std::uintmax_t total = 0;
   for (const auto& f : files) total += f.print.size;
@@ -117,6 +136,14 @@ Spool::Spool(fs::path dir, std::shared_ptr<StorageIo> io) : dir_(std::move(dir))
 }
 
 void Spool::clean_leftovers() {
+  // Another process mid-export or mid-removal holds the folder shared: its
+  // ".incoming-"/".done-" folder is live work, not a leftover. Leftovers wait
+  // for a start when nobody is writing.
+  const SpoolFolderLock cleaning(dir_, SpoolFolderLock::Mode::Cleaning);
+  if (!cleaning.held()) {
+    spdlog::info("spool: another export is in progress in {}; leftovers are left for the next start", dir_.string());
+    return;
+  }
   std::error_code ec;
   std::vector<fs::path> leftovers;
   for (fs::directory_iterator it(dir_, ec), end; !ec && it != end; it.increment(ec)) {
@@ -141,6 +168,7 @@ SpoolEntry Spool::add(const std::string& id, const std::string& stem, const std:
   entry.taken = std::chrono::time_point_cast<std::chrono::milliseconds>(taken);
   entry.dir = dir_ / id;
   const fs::path incoming = dir_ / (kSpoolIncomingPrefix + id);
+  const SpoolFolderLock writing(dir_, SpoolFolderLock::Mode::Writing);
   try {
     check_io(io_->make_dir(incoming), "mkdir", incoming);
     for (const auto& f : files) {
@@ -204,6 +232,7 @@ std::vector<SpoolEntry> Spool::entries() const {
 
 void Spool::remove(const SpoolEntry& entry) {
   const fs::path done = dir_ / (kSpoolDonePrefix + entry.id);
+  const SpoolFolderLock writing(dir_, SpoolFolderLock::Mode::Writing);
   check_io(io_->rename_new(entry.dir, done), "rename", done);
   check_io(io_->sync_dir(dir_), "fsync folder", dir_);
   try {

@@ -3,7 +3,9 @@
 // its files and a manifest.json (written last) with each file's size and hash.
 // It is built under ".incoming-<id>" and renamed into place, so an entry
 // either exists complete or not at all; deletion renames it to ".done-<id>"
-// first. Leftovers of both kinds (a crash mid-way) are removed on start.
+// first. Leftovers of both kinds (a crash mid-way) are removed on start,
+// unless another process is exporting into or removing from the same spool
+// (it holds the folder's lock shared; see SpoolFolderLock).
 //
 //   <spool>/20261201T230112-1a2b3c4d/manifest.json, composite.png, composite.jpg,
 //                                    metadata.json, layers.exr, scene/...
@@ -47,6 +49,23 @@ inline constexpr const char* kSpoolIncomingPrefix = ".incoming-";
 inline constexpr const char* kSpoolDonePrefix = ".done-";
 inline constexpr const char* kSceneFolder = "scene";
 inline constexpr const char* kSceneStickSuffix = "_scene";
+
+// An advisory lock on the spool folder. Writing (an entry being built or
+// removed) holds it shared and waits for a cleaning; cleaning up leftovers
+// wants it alone and does not wait: `held()` is false while anyone writes.
+class SpoolFolderLock {
+ public:
+  enum class Mode { Writing, Cleaning };
+  SpoolFolderLock(const std::filesystem::path& dir, Mode mode);
+  ~SpoolFolderLock();
+  SpoolFolderLock(const SpoolFolderLock&) = delete;
+  SpoolFolderLock& operator=(const SpoolFolderLock&) = delete;
+  bool held() const { return held_; }
+
+ private:
+  int fd_ = -1;
+  bool held_ = false;
+};
 
 class Spool {
  public:

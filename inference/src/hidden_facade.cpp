@@ -4,6 +4,7 @@
 #include <stdexcept>
 
 #include "propcam/inference/hidden_facades.h"
+#include "propcam/inference/physical_ranges.h"
 
 namespace propcam::inference {
 
@@ -19,6 +20,7 @@ void HiddenFacade::validate() const {
   if (!(along_min <= seen_min && seen_min <= seen_max && seen_max <= along_max) || along_max - along_min > kMaxFacadeSpanM)
     throw std::runtime_error("hidden facade: bad extent along it");
   if (pixels < 0) throw std::runtime_error("hidden facade: negative pixel count");
+  for (int c = 0; c < 3; ++c) require_in_range(albedo[c], kAlbedoRange, "hidden facade albedo");
 }
 
 }  // namespace propcam::inference

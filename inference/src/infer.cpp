@@ -1,4 +1,5 @@
 #include "propcam/inference/infer.h"
+#include "propcam/inference/physical_ranges.h"
 
 #include <algorithm>
 #include <cstdio>
@@ -24,7 +25,11 @@ void check_photo(const cv::Mat& photo, const InferenceOptions& options) {
     throw std::invalid_argument("infer_scene: the photo is " + std::to_string(photo.cols) + "x" +
                                 std::to_string(photo.rows) + "; at least " + std::to_string(kMinPhotoSide) +
                                 " pixels per side are needed");
-  if (!(options.camera_height_m > 0)) throw std::invalid_argument("infer_scene: camera height must be positive");
+  if (std::max(photo.cols, photo.rows) > kMaxPhotoAspect * std::min(photo.cols, photo.rows))
+    throw std::invalid_argument("the photo is " + std::to_string(photo.cols) + "x" + std::to_string(photo.rows) +
+                                "; its long side may be at most " + std::to_string(kMaxPhotoAspect) +
+                                " times its short side (crop it)");
+  require_in_range(options.camera_height_m, kCameraHeightRange, "the camera height");
 }
 
 render::PinholeCamera pinhole_from(const CameraEstimate& cam, int width, int height, double camera_height_m) {

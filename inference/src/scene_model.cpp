@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "propcam/capture/image_file.h"
+#include "propcam/inference/physical_ranges.h"
 
 namespace propcam::inference {
 namespace fs = std::filesystem;
@@ -173,6 +174,10 @@ void SceneModel::validate() const {
   for (double v : {fx, fy, cx, cy, camera_height_m, gamma})
     if (!std::isfinite(v)) throw std::runtime_error("scene model: non-finite camera number");
   if (!(fx > 0 && fy > 0)) throw std::runtime_error("scene model: focal length must be positive");
+  require_in_range(fx, kFocalPxRange, "scene.json K.fx");
+  require_in_range(fy, kFocalPxRange, "scene.json K.fy");
+  require_in_range(camera_height_m, kCameraHeightRange, "scene.json camera_height_m");
+  require_in_range(gamma, kResponseGammaRange, "scene.json gamma");
   if (!R_world_from_cam.allFinite()) throw std::runtime_error("scene model: non-finite rotation");
   for (const cv::Mat* m : {&depth, &albedo, &normals})
     if (!m->empty() && (m->cols != width || m->rows != height))
@@ -183,6 +188,7 @@ void SceneModel::validate() const {
   for (const auto& l : lights) {
     if (!l.intensity.allFinite() || !l.position.allFinite() || !l.corner.allFinite())
       throw std::runtime_error("scene model: non-finite light");
+    for (int c = 0; c < 3; ++c) require_in_range(l.intensity[c], kLightIntensityRange, "scene.json light intensity");
     if (l.type == LightSource::Type::Point && !(l.radius >= kMinPointLightRadiusM && l.radius <= kMaxPointLightRadiusM))
       throw std::runtime_error("scene model: a point light's radius must lie in [1e-4, 2] m");
   }

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <random>
 #include <csignal>
@@ -155,6 +156,81 @@ TEST(Cli, BadInputIsAClearErrorNotACrash) {
   r = propcam("infer " + junk + " -o " + temp("junk_scene"));
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.out.find("junk.png"), std::string::npos) << r.out;
+}
+
+// Numbers that would make nonsense are refused where they enter, naming the
+// option and its range; NaN included.
+TEST(Cli, NumbersOutsideTheirPhysicalRangeAreRefusedNamingTheRange) {
+  const std::string out = temp("range.png");
+  for (const std::string& bad : {"--height 0", "--height -1", "--height nan", "--aperture nan", "--yaw nan",
+                                 "--focal 1e-300", "--camera-height 0", "--camera-height -1.5", "--spp 0",
+                                 "--albedo 1e30,0.5,0.5"}) {
+    const CliRun r = propcam("composite " + fixture_photo() + " --prop vase --at 80,95 " + bad + " -o " + out);
+    EXPECT_EQ(r.exit_code, 2) << bad << ": " << r.out;
+    const std::string option = bad.substr(0, bad.find(' '));
+    EXPECT_NE(r.out.find(option), std::string::npos) << bad << ": " << r.out;
+    EXPECT_TRUE(r.out.find("must be") != std::string::npos || r.out.find("not in range") != std::string::npos ||
+                r.out.find("out of range") != std::string::npos)
+        << bad << ": " << r.out;
+  }
+  EXPECT_FALSE(fs::exists(out));
+  const CliRun r = propcam("composite " + fixture_photo() + " --prop vase --at 80,95 --spp 1 --light-scale 0=1e38 -o " + out);
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_NE(r.out.find("--light-scale"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(out));
+}
+
+// A scene folder edited by hand: each field out of its range is named.
+TEST(Cli, ASceneFolderWithNonsenseNumbersIsRefusedNamingTheField) {
+  const std::string scene = temp("scene_ranges");
+  ASSERT_EQ(propcam("infer " + fixture_photo() + " -o " + scene).exit_code, 0);
+  json original;
+  std::ifstream(scene + "/scene.json") >> original;
+  const auto composite_with = [&](const std::function<void(json&)>& edit) {
+    json j = original;
+    edit(j);
+    std::ofstream(scene + "/scene.json") << j.dump(2);
+    return propcam("composite " + fixture_photo() + " --scene " + scene + " --prop vase --at 80,95 --spp 1 -o " +
+                   temp("ranges.png"));
+  };
+  CliRun r = composite_with([](json& j) { j["gamma"] = 1e300; });
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.out.find("gamma"), std::string::npos) << r.out;
+  r = composite_with([](json& j) { j["camera_height_m"] = 0.0; });
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.out.find("camera_height_m"), std::string::npos) << r.out;
+  r = composite_with([](json& j) { j["lights"][0]["intensity"] = json::array({1e300, 1.0, 1.0}); });
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.out.find("intensity"), std::string::npos) << r.out;
+  r = composite_with([](json&) {});
+  EXPECT_EQ(r.exit_code, 0) << r.out;
+  fs::remove(scene + "/depth.exr");
+  r = composite_with([](json&) {});
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.out.find("depth.exr"), std::string::npos) << r.out;
+}
+
+// Photos the appliance cannot model say why: a strip, half a JPEG, a folder.
+TEST(Cli, UnusablePhotosAreClearErrors) {
+  const std::string strip = temp("strip.png");
+  propcam::capture::write_image(strip, cv::Mat(16, 1000, CV_8UC3, cv::Scalar(90, 120, 150)));
+  CliRun r = propcam("infer " + strip + " -o " + temp("strip_scene"));
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.out.find("long side"), std::string::npos) << r.out;
+
+  const std::string full = temp("whole.jpg"), half = temp("half.jpg");
+  propcam::capture::write_image(full, propcam::capture::linear_to_srgb8(propcam::capture::load_photo_linear(fixture_photo())));
+  std::ifstream in(full, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::ofstream(half, std::ios::binary) << bytes.substr(0, bytes.size() / 2);
+  r = propcam("composite " + half + " --prop vase --at 80,95 --spp 1 -o " + temp("half_out.png"));
+  EXPECT_EQ(r.exit_code, 1) << r.out;
+  EXPECT_NE(r.out.find("cut short"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(temp("half_out.png")));
+
+  r = propcam("infer " + temp("") + " -o " + temp("folder_scene"));
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.out.find("folder"), std::string::npos) << r.out;
 }
 
 TEST(Cli, VersionNamesTheProgramAndItsVersion) {

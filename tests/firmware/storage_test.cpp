@@ -4,10 +4,12 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <atomic>
 #include <cstdio>
 #include <fstream>
 #include <regex>
 #include <sys/wait.h>
+#include <thread>
 
 #include "cli_run.h"
 #include "propcam/capture/image_file.h"
@@ -228,6 +230,39 @@ TEST(StorageExport, RestartRemovesWhatACrashLeft) {
   EXPECT_EQ(check_stick(usb / kStickFolder), (std::vector<int>{5}));
 }
 
+// An ".incoming-" folder is a leftover only when nobody is writing: while
+// another exporter holds the spool, starting one (even to list) keeps it.
+TEST(StorageExport, AnotherProcesssExportInProgressIsNotALeftover) {
+  const fs::path spool = fresh_dir("spool");
+  const fs::path live = spool / ".incoming-20261201T230112-00000001";
+  fs::create_directories(live);
+  {
+    const SpoolFolderLock writing(spool, SpoolFolderLock::Mode::Writing);
+    ASSERT_TRUE(writing.held());
+    Exporter lister(spool, UsbTarget::folder(fresh_dir("usb")));
+    EXPECT_TRUE(fs::exists(live));
+  }
+  Exporter after(spool, UsbTarget::folder(fresh_dir("usb")));
+  EXPECT_FALSE(fs::exists(live));
+}
+
+// Exports and exporters starting beside them, at once: every export lands.
+TEST(StorageExport, ConcurrentExportersNeverRemoveEachOthersWork) {
+  const fs::path spool = fresh_dir("spool"), no_stick = fresh_dir("usb") / "absent";
+  constexpr int kExports = 40;
+  std::atomic<bool> done{false};
+  std::thread starter([&] {
+    while (!done) Exporter(spool, UsbTarget::folder(no_stick)).spool();
+  });
+  Exporter exporter(spool, UsbTarget::folder(no_stick));
+  int spooled = 0;
+  for (int i = 0; i < kExports; ++i) spooled += exporter.export_composite(make_item(i)).kind == ExportOutcome::Kind::Spooled;
+  done = true;
+  starter.join();
+  EXPECT_EQ(spooled, kExports);
+  EXPECT_EQ(exporter.spool().size(), static_cast<std::size_t>(kExports));
+}
+
 TEST(StorageExport, RejectsACompositeThatIsNotRgb8) {
   Exporter exporter(fresh_dir("spool"), UsbTarget::folder(fresh_dir("usb")));
   ExportItem item = make_item(0);
@@ -344,6 +379,29 @@ TEST(StorageCli, ExportAndSpoolEndToEnd) {
   ASSERT_TRUE(decoded);
   EXPECT_TRUE(same_pixels(decoded->pixels, item_pixels(9)));
   for (const auto& f : out["results"][0]["files"]) EXPECT_FALSE(has_suffix(f.get<std::string>(), ".jpg"));
+}
+
+// One unreadable file in a batch is reported; the others are exported.
+TEST(StorageCli, ABatchReportsEachFileAndKeepsGoingPastABadOne) {
+  const fs::path inputs = fresh_dir("in"), spool = fresh_dir("spool"), usb = fresh_dir("stick");
+  const fs::path a = inputs / "a.png", bad = inputs / "bad.png", c = inputs / "c.png";
+  propcam::capture::write_image(a.string(), item_pixels(1));
+  propcam::capture::write_image(c.string(), item_pixels(3));
+  std::ofstream(bad) << "not an image";
+  const std::string storage = " --spool '" + spool.string() + "' --usb '" + usb.string() + "'";
+  CliRun r = propcam("export '" + a.string() + "' '" + bad.string() + "' '" + c.string() + "'" + storage + " --json");
+  EXPECT_EQ(r.exit_code, 1) << r.out;
+  const json out = json_of(r.out);
+  ASSERT_EQ(out["results"].size(), 3u) << r.out;
+  EXPECT_EQ(out["results"][0]["kind"], "written");
+  EXPECT_EQ(out["results"][1]["kind"], "failed");
+  EXPECT_NE(out["results"][1]["message"].get<std::string>().find("bad.png"), std::string::npos) << r.out;
+  EXPECT_EQ(out["results"][2]["kind"], "written");
+  EXPECT_EQ(check_stick(usb / kStickFolder).size(), 2u);
+
+  r = propcam("export '" + a.string() + "' '" + bad.string() + "'" + storage);
+  EXPECT_EQ(r.exit_code, 1) << r.out;
+  EXPECT_NE(r.out.find("bad.png: not exported"), std::string::npos) << r.out;
 }
 
 TEST(StorageCli, RuntimeLocationsNeedTheFlags) {

@@ -126,6 +126,23 @@ void add_capture_cases(std::vector<HardCase>& cases) {
                      write_text_file(half, bytes.substr(0, bytes.size() / 2));
                      capture::load_photo_linear(half.string());
                    }});
+  cases.push_back({"TruncatedJpeg", m, "a 128x96 JPEG cut to half its bytes, through load_photo_linear",
+                   "error naming the file and the cut", Expect::Error, {"half.jpg", "cut short"}, [](Digest&) {
+                     ScratchDir dir("TruncatedJpeg");
+                     const fs::path full = dir / "full.jpg", half = dir / "half.jpg";
+                     capture::write_image(full.string(), small_rgb8(128, 96));
+                     capture::load_photo_linear(full.string());  // whole, it reads
+                     std::ifstream in(full, std::ios::binary);
+                     std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+                     write_text_file(half, bytes.substr(0, bytes.size() / 2));
+                     capture::load_photo_linear(half.string());
+                   }});
+  cases.push_back({"FolderGivenAsPhoto", m, "a folder named photo.png, through load_photo_linear",
+                   "error saying it is a folder", Expect::Error, {"photo.png", "folder"}, [](Digest&) {
+                     ScratchDir dir("FolderGivenAsPhoto");
+                     fs::create_directories(dir / "photo.png");
+                     capture::load_photo_linear((dir / "photo.png").string());
+                   }});
   cases.push_back({"TextFileNamedPng", m, "a .png file holding a line of text", "error naming the file",
                    Expect::Error, {"notes.png"}, [](Digest&) {
                      ScratchDir dir("TextFileNamedPng");

@@ -85,6 +85,8 @@ SceneModel complete_scene(const cv::Mat& photo, const GeometryEstimate& geometry
 SceneModel infer_scene(const cv::Mat& photo_linear, const InferenceOptions& options = {});
 
 constexpr int kMinPhotoSide = 16;
+// A strip (a 10000x16 photo) leaves no scene to model at the working size.
+constexpr int kMaxPhotoAspect = 8;
 
 // The names InferenceOptions::on_stage is called with, in order (a screen
 // lists them as pending before the analysis starts).
