@@ -1,9 +1,14 @@
 #include "propcam/capture/capture_bench.h"
 
+#include <poll.h>
+#include <sys/socket.h>
+#include <sys/un.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
+#include <cstring>
+#include <exception>
 #include <filesystem>
 #include <map>
 #include <mutex>
@@ -153,6 +158,77 @@ class TimedSource final : public FrameSource {
   std::shared_ptr<DeliveryTimes> times_;
 };
 
+// Forwards to the real source; each still first takes `still_time`, as on a real camera.
+class SlowStillSource final : public FrameSource {
+ public:
+  SlowStillSource(std::unique_ptr<FrameSource> inner, std::chrono::milliseconds still_time)
+      : inner_(std::move(inner)), still_time_(still_time) {}
+  CameraInfo info() const override { return inner_->info(); }
+  ConfigStatus configure(StreamConfig& c) override { return inner_->configure(c); }
+  StreamConfig configuration() const override { return inner_->configuration(); }
+  void start() override { inner_->start(); }
+  void stop() override { inner_->stop(); }
+  bool running() const override { return inner_->running(); }
+  CaptureResult next_frame(std::chrono::milliseconds timeout) override { return inner_->next_frame(timeout); }
+  CaptureResult capture_still(const std::optional<StreamConfig>& s, std::chrono::milliseconds t) override {
+    std::this_thread::sleep_for(still_time_);
+    return inner_->capture_still(s, t);
+  }
+  std::vector<std::string> set_controls(const CameraControls& c) override { return inner_->set_controls(c); }
+
+ private:
+  std::unique_ptr<FrameSource> inner_;
+  std::chrono::milliseconds still_time_;
+};
+
+// The flooding client: a bare socket that keeps `depth` still requests
+// unanswered (a refused one is sent again at once) until `stop`.
+struct Flood {
+  std::atomic<bool> stop{false};
+  std::atomic<bool> primed{false};  // the first `depth` requests are sent
+  std::uint64_t stills = 0, refused = 0;
+  std::exception_ptr error;  // read after the thread is joined
+
+  void run(const std::string& path, int depth) try {
+    detail::UniqueFd fd(::socket(AF_UNIX, SOCK_SEQPACKET | SOCK_NONBLOCK | SOCK_CLOEXEC, 0));
+    if (!fd) detail::throw_errno("socket");
+    sockaddr_un addr{};
+    addr.sun_family = AF_UNIX;
+    std::strncpy(addr.sun_path, path.c_str(), sizeof addr.sun_path - 1);
+    if (::connect(fd.get(), reinterpret_cast<const sockaddr*>(&addr), sizeof addr) != 0)
+      detail::throw_errno("flood: connect " + path);
+    std::uint32_t rid = 0;
+    int outstanding = 0;
+    while (!stop) {
+      while (outstanding < depth) {
+        protocol::CaptureStillRequest req;
+        req.timeout_ms = 10000;
+        const auto sent = detail::send_packet(fd.get(), protocol::encode(++rid, req));
+        if (sent == detail::SendResult::Closed) throw std::runtime_error("flood: the server closed the connection");
+        if (sent == detail::SendResult::WouldBlock) break;
+        ++outstanding;
+      }
+      primed = true;
+      pollfd p{fd.get(), POLLIN, 0};
+      ::poll(&p, 1, 20);
+      for (;;) {
+        const detail::Received r = detail::recv_packet(fd.get(), true);
+        if (r.kind == detail::Received::Kind::WouldBlock) break;
+        if (r.kind != detail::Received::Kind::Packet)
+          throw std::runtime_error("flood: the server closed the connection");
+        const auto type = protocol::decode_header(r.bytes.data(), r.bytes.size()).type;
+        if (type == protocol::MessageType::StillFrame) ++stills;
+        else if (type == protocol::MessageType::Error) ++refused;
+        else continue;  // the welcome
+        --outstanding;
+      }
+    }
+  } catch (...) {
+    error = std::current_exception();
+    primed = true;
+  }
+};
+
 LatencyStats stats_of(std::vector<double> ms) {
   LatencyStats s;
   if (ms.empty()) return s;
@@ -242,6 +318,61 @@ DaemonBenchResult measure_daemon_throughput(const FrameSourceFactory& factory, c
   result.total = stats_of(std::move(total));
   result.source = stats_of(std::move(source));
   result.daemon = stats_of(std::move(daemon));
+  return result;
+}
+
+FloodBenchResult measure_still_latency_under_flood(const FrameSourceFactory& factory,
+                                                   const FloodBenchOptions& options) {
+  if (options.stills <= 0 || options.flood_depth <= 0)
+    throw std::invalid_argument("measure_still_latency_under_flood: stills and flood_depth must be > 0");
+  const auto still_time = options.still_time;
+  FrameSourceFactory slow = [factory, still_time](const std::string& id) -> std::unique_ptr<FrameSource> {
+    auto inner = factory(id);
+    if (!inner) return nullptr;
+    return std::make_unique<SlowStillSource>(std::move(inner), still_time);
+  };
+  const bool own_folder = options.socket_path.empty();
+  CaptureServerOptions so;
+  so.socket_path = own_folder ? bench_socket_path() : options.socket_path;
+  so.camera_id = options.camera_id;
+  so.stream = options.stream;
+  CaptureServer server(slow, so);
+  server.start();
+
+  FloodBenchResult result;
+  std::vector<double> latency;
+  std::exception_ptr failure;
+  {
+    CaptureClient client(so.socket_path);
+    Flood flood;
+    std::thread flooder([&] { flood.run(so.socket_path, options.flood_depth); });
+    try {
+      while (!flood.primed) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      const auto start = Clock::now();
+      for (int i = 0; i < options.stills; ++i) {
+        const auto t0 = Clock::now();
+        const CaptureResult r = client.capture_still(std::nullopt, options.still_timeout);
+        if (r.status != CaptureStatus::Ok || !r.frame) throw std::runtime_error("still: " + r.message);
+        latency.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
+        ++result.stills;
+      }
+      result.seconds = std::chrono::duration<double>(Clock::now() - start).count();
+    } catch (...) {
+      failure = std::current_exception();
+    }
+    flood.stop = true;
+    flooder.join();
+    if (!failure) failure = flood.error;
+    result.flood_stills = flood.stills;
+    result.flood_refused = flood.refused;
+  }
+  server.stop();
+  if (own_folder) {
+    std::error_code ec;
+    std::filesystem::remove_all(std::filesystem::path(so.socket_path).parent_path(), ec);
+  }
+  if (failure) std::rethrow_exception(failure);
+  result.latency = stats_of(std::move(latency));
   return result;
 }
 

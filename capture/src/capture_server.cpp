@@ -20,6 +20,7 @@
 #include <thread>
 
 #include "capture_socket.h"
+#include "request_queue.h"
 
 namespace propcam::capture {
 namespace {
@@ -35,6 +36,7 @@ constexpr std::uint64_t kListenTag = 0;
 constexpr std::uint64_t kWakeTag = 1;
 constexpr std::uint64_t kClientTag = std::uint64_t{1} << 32;
 constexpr int kPacketsPerWakeup = 64;  // then other clients get their turn
+constexpr int kLoopWaitMs = 1000;       // the epoll thread's longest sleep
 constexpr std::size_t kPage = 4096;
 
 // Bytes a frame of this configuration needs (frame_bytes() lives in another
@@ -55,6 +57,13 @@ std::size_t expected_frame_bytes(const StreamConfig& c) {
 }
 
 std::size_t round_to_page(std::size_t n) { return std::max<std::size_t>(kPage, (n + kPage - 1) / kPage * kPage); }
+
+std::int64_t to_ns(std::chrono::milliseconds d) { return std::int64_t{d.count()} * 1'000'000; }
+
+// "30 s", "200 ms": for messages.
+std::string duration_text(std::chrono::milliseconds d) {
+  return d.count() % 1000 == 0 ? std::to_string(d.count() / 1000) + " s" : std::to_string(d.count()) + " ms";
+}
 
 const char* status_name(CaptureStatus s) {
   switch (s) {
@@ -120,6 +129,7 @@ struct Client {
   std::uint64_t sent = 0;
   std::uint64_t dropped = 0;
   int stalled = 0;
+  std::int64_t last_heard = 0;  // monotonic ns of its last packet or reply, for the idle timeout
 };
 
 }  // namespace
@@ -143,10 +153,11 @@ struct CaptureServer::Impl {
   std::uint64_t device_lost_count = 0;
   std::deque<std::int64_t> arrivals;  // the last second's frame times, for fps
 
-  // Work for the camera thread.
+  // Work for the camera thread; lock order: mu before job_mu.
   std::mutex job_mu;
   std::condition_variable job_cv;
-  std::deque<std::function<void()>> jobs;
+  detail::RequestQueue requests{kMaxRequestsPerClient};  // sized from the options by the constructor
+  RequestCounts counts;
   bool nudged = false;
   bool stopping = false;
 
@@ -161,6 +172,7 @@ struct CaptureServer::Impl {
 
   UniqueFd listen_fd, epoll_fd, wake_fd;
   std::thread camera_thread, loop_thread;
+  std::int64_t next_idle_check = 0;  // epoll thread only
   dev_t socket_dev = 0;
   ino_t socket_ino = 0;
   bool started = false;
@@ -234,6 +246,10 @@ struct CaptureServer::Impl {
     c.dead = true;
     c.viewfinder = false;
     release_all_locked(c);
+    {
+      std::lock_guard jobs_lock(job_mu);
+      counts.dropped += requests.drop(c.id);  // nobody to answer; a running one's reply goes nowhere
+    }
     log("client " + std::to_string(c.id) + " gone: " + why);
     wake_loop();
   }
@@ -250,7 +266,19 @@ struct CaptureServer::Impl {
   void reply(std::uint32_t client_id, const proto::Packet& packet, int fd = -1) {
     std::lock_guard lock(mu);
     const auto it = clients.find(client_id);
-    if (it != clients.end()) send_must_locked(it->second, packet, fd);
+    if (it == clients.end()) return;
+    it->second.last_heard = monotonic_ns();  // its idle time starts when it has its answer
+    send_must_locked(it->second, packet, fd);
+  }
+
+  // A camera command's reply. Its place in the client's queue is freed first:
+  // a client at its limit may send the next command as soon as it has this answer.
+  void answer(std::uint32_t client_id, const proto::Packet& packet, int fd = -1) {
+    {
+      std::lock_guard lock(job_mu);
+      requests.done(client_id);
+    }
+    reply(client_id, packet, fd);
   }
 
   void broadcast_locked(const proto::Packet& packet, int fd = -1) {
@@ -502,19 +530,21 @@ struct CaptureServer::Impl {
     }
   }
 
-  // Runs queued commands; then waits until `until` unless there is work.
+  // Runs queued commands, the clients in turn; then waits until `until` unless there is work.
   bool run_jobs_or_wait(std::optional<std::chrono::steady_clock::time_point> until) {
     std::unique_lock lock(job_mu);
-    if (until && jobs.empty() && !nudged && !stopping) {
-      job_cv.wait_until(lock, *until, [&] { return !jobs.empty() || nudged || stopping; });
+    if (until && requests.empty() && !nudged && !stopping) {
+      job_cv.wait_until(lock, *until, [&] { return !requests.empty() || nudged || stopping; });
     }
     nudged = false;
-    while (!jobs.empty() && !stopping) {
-      auto job = std::move(jobs.front());
-      jobs.pop_front();
+    while (!stopping) {
+      auto next = requests.pop();
+      if (!next) break;
+      ++counts.run;
       lock.unlock();
-      job();
+      next->job();
       lock.lock();
+      requests.done(next->client);  // a no-op when the job answered (one job of a client runs at a time)
     }
     return !stopping;
   }
@@ -548,12 +578,21 @@ struct CaptureServer::Impl {
     close_source();
   }
 
-  void post(std::function<void()> job) {
+  // Queues a camera command of client `id`; one over its limit is answered with an Error instead.
+  void submit(std::uint32_t id, std::uint32_t rid, std::function<void()> job) {
+    std::lock_guard lock(mu);
+    const auto it = clients.find(id);
+    if (it == clients.end() || it->second.dead) return;  // gone: its commands are dropped
+    bool queued;
     {
-      std::lock_guard lock(job_mu);
-      jobs.push_back(std::move(job));
+      std::lock_guard jobs_lock(job_mu);
+      queued = requests.push(id, std::move(job));
+      if (!queued) ++counts.refused;
     }
-    job_cv.notify_one();
+    if (queued) return job_cv.notify_one();
+    send_must_locked(it->second, proto::encode_error(rid, "too many requests: at most " +
+                                                              std::to_string(opt.max_requests_per_client) +
+                                                              " camera commands queued or running per client"));
   }
 
   void nudge() {
@@ -624,18 +663,18 @@ struct CaptureServer::Impl {
   }
 
   void do_still(std::uint32_t client_id, std::uint32_t rid, const proto::CaptureStillRequest& req) {
-    if (!source) return reply(client_id, proto::encode_error(rid, "no camera open"));
+    if (!source) return answer(client_id, proto::encode_error(rid, "no camera open"));
     CaptureResult r;
     try {
       r = source->capture_still(req.config, std::chrono::milliseconds(req.timeout_ms));
     } catch (const std::exception& e) {
-      return reply(client_id, proto::encode_error(rid, std::string("still: ") + e.what()));
+      return answer(client_id, proto::encode_error(rid, std::string("still: ") + e.what()));
     }
     if (r.status != CaptureStatus::Ok || !r.frame) {
       proto::StillFrame failed;
       failed.status = r.status == CaptureStatus::Ok ? CaptureStatus::Timeout : r.status;
       failed.message = r.message.empty() ? std::string(status_name(failed.status)) : r.message;
-      reply(client_id, proto::encode(rid, failed));
+      answer(client_id, proto::encode(rid, failed));
       if (r.status == CaptureStatus::DeviceLost) lose_device(failed.message);
       return;
     }
@@ -653,9 +692,9 @@ struct CaptureServer::Impl {
       m.memfd_bytes = size;
       m.format = r.frame->format;
       m.metadata = r.frame->metadata;
-      reply(client_id, proto::encode(rid, m), fd.get());
+      answer(client_id, proto::encode(rid, m), fd.get());
     } catch (const std::exception& e) {
-      reply(client_id, proto::encode_error(rid, std::string("still: ") + e.what()));
+      answer(client_id, proto::encode_error(rid, std::string("still: ") + e.what()));
     }
   }
 
@@ -691,6 +730,7 @@ struct CaptureServer::Impl {
       Client& c = clients[id];
       c.id = id;
       c.fd = std::move(fd);
+      c.last_heard = monotonic_ns();
       proto::Welcome w;
       w.client_id = id;
       w.max_held_slots = static_cast<std::uint32_t>(opt.max_held_slots);
@@ -717,6 +757,10 @@ struct CaptureServer::Impl {
 
   void disconnect(std::uint32_t id, const std::string& why) {
     std::lock_guard lock(mu);
+    disconnect_locked(id, why);
+  }
+
+  void disconnect_locked(std::uint32_t id, const std::string& why) {
     const auto it = clients.find(id);
     if (it == clients.end()) return;
     mark_dead_locked(it->second, why);
@@ -731,6 +775,7 @@ struct CaptureServer::Impl {
       const auto it = clients.find(id);
       if (it == clients.end() || it->second.dead) return;
       fd = it->second.fd.get();  // stays open: only this thread closes client fds
+      if (events & EPOLLIN) it->second.last_heard = monotonic_ns();
     }
     if (events & EPOLLIN) {
       for (int i = 0; i < kPacketsPerWakeup; ++i) {
@@ -797,19 +842,19 @@ struct CaptureServer::Impl {
       case T::ReleaseSlot: return release(id, rid, proto::decode_release_slot(p));
       case T::SelectCamera: {
         std::string camera = proto::decode_select_camera(p);
-        return post([this, id, rid, camera] { reply(id, do_select(rid, camera)); });
+        return submit(id, rid, [this, id, rid, camera] { answer(id, do_select(rid, camera)); });
       }
       case T::Configure: {
         const StreamConfig c = proto::decode_configure(p);
-        return post([this, id, rid, c] { reply(id, do_configure(rid, c)); });
+        return submit(id, rid, [this, id, rid, c] { answer(id, do_configure(rid, c)); });
       }
       case T::SetControls: {
         const CameraControls c = proto::decode_controls(p);
-        return post([this, id, rid, c] { reply(id, do_controls(rid, c)); });
+        return submit(id, rid, [this, id, rid, c] { answer(id, do_controls(rid, c)); });
       }
       case T::CaptureStill: {
         const proto::CaptureStillRequest req = proto::decode_capture_still(p);
-        return post([this, id, rid, req] { do_still(id, rid, req); });
+        return submit(id, rid, [this, id, rid, req] { do_still(id, rid, req); });
       }
       default: throw proto::ProtocolError("not a client message");
     }
@@ -870,6 +915,37 @@ struct CaptureServer::Impl {
     return s;
   }
 
+  // Closes the connections silent for idle_timeout. One waiting for a command
+  // of its own is not idle: its idle time starts again when it is answered.
+  void close_idle() {
+    const std::int64_t now = monotonic_ns(), limit = to_ns(opt.idle_timeout);
+    if (limit <= 0 || now < next_idle_check) return;
+    next_idle_check = now + limit;
+    std::vector<std::uint32_t> idle;
+    std::lock_guard lock(mu);
+    {
+      std::lock_guard jobs_lock(job_mu);
+      for (auto& [id, c] : clients) {
+        if (c.dead) continue;
+        if (requests.pending(id) > 0) c.last_heard = now;
+        if (now - c.last_heard >= limit) idle.push_back(id);
+        else next_idle_check = std::min(next_idle_check, c.last_heard + limit);
+      }
+    }
+    const std::string why = "idle for " + duration_text(opt.idle_timeout);
+    for (const std::uint32_t id : idle) {
+      detail::send_packet(clients.at(id).fd.get(), proto::encode_error(0, "connection closed: " + why));
+      disconnect_locked(id, why);
+    }
+  }
+
+  // Until the next idle check is due, at most kLoopWaitMs.
+  int loop_wait_ms() const {
+    if (opt.idle_timeout.count() <= 0) return kLoopWaitMs;
+    const std::int64_t left = next_idle_check - monotonic_ns();
+    return static_cast<int>(std::clamp<std::int64_t>((left + 999'999) / 1'000'000, 0, kLoopWaitMs));
+  }
+
   void event_loop() {
     epoll_event events[32];
     for (;;) {
@@ -877,7 +953,8 @@ struct CaptureServer::Impl {
         std::lock_guard lock(job_mu);
         if (stopping) return;
       }
-      const int n = ::epoll_wait(epoll_fd.get(), events, 32, 1000);
+      close_idle();
+      const int n = ::epoll_wait(epoll_fd.get(), events, 32, loop_wait_ms());
       if (n < 0) {
         if (errno == EINTR) continue;
         log(std::string("epoll_wait: ") + std::strerror(errno));
@@ -897,6 +974,8 @@ CaptureServer::CaptureServer(FrameSourceFactory factory, CaptureServerOptions op
     : impl_(std::make_unique<Impl>()) {
   if (!factory) throw std::invalid_argument("CaptureServer needs a camera factory");
   if (options.max_held_slots < 1 || options.ring_slots < 1) throw std::invalid_argument("ring and held slots must be >= 1");
+  if (options.max_requests_per_client < 1) throw std::invalid_argument("max_requests_per_client must be >= 1");
+  impl_->requests = detail::RequestQueue(static_cast<std::size_t>(options.max_requests_per_client));
   impl_->factory = std::move(factory);
   impl_->opt = std::move(options);
   impl_->opt.max_stalled_frames = std::max(1, impl_->opt.max_stalled_frames);
@@ -958,6 +1037,11 @@ void CaptureServer::wait() {
 }
 
 protocol::Status CaptureServer::status() const { return impl_->status_snapshot(0); }
+
+RequestCounts CaptureServer::request_counts() const {
+  std::lock_guard lock(impl_->job_mu);
+  return impl_->counts;
+}
 
 const std::string& CaptureServer::socket_path() const { return impl_->opt.socket_path; }
 

@@ -7,6 +7,7 @@
 
 #include "daemon_test_support.h"
 #include "propcam/capture/capture_bench.h"
+#include "propcam/capture/replay_source.h"
 
 namespace propcam::capture {
 namespace {
@@ -423,6 +424,42 @@ TEST(CaptureDaemon, BenchMeasuresFramesAndLatency) {
   EXPECT_FALSE(std::filesystem::exists(o.socket_path));
   EXPECT_THROW(measure_daemon_throughput(synthetic_source_factory(), DaemonBenchOptions{"", "x", {}, 0, {}, {}}),
                std::invalid_argument);
+}
+
+TEST(CaptureDaemon, FloodBenchMeasuresAStillsLatency) {
+  FloodBenchOptions o;
+  o.socket_path = test::temp_socket("flood.sock");
+  o.stream = StreamConfig{PixelFormat::YUYV, 64, 48, 0};
+  o.still_time = 1ms;
+  o.flood_depth = 4;
+  o.stills = 3;
+  const FloodBenchResult r = measure_still_latency_under_flood(synthetic_source_factory(), o);
+  EXPECT_EQ(r.stills, 3);
+  EXPECT_GT(r.latency.mean_ms, 0);
+  EXPECT_LE(r.latency.mean_ms, r.latency.max_ms);
+  EXPECT_FALSE(std::filesystem::exists(o.socket_path));
+  o.stills = 0;
+  EXPECT_THROW(measure_still_latency_under_flood(synthetic_source_factory(), o), std::invalid_argument);
+}
+
+// Not run by default: a well-behaved client's still latency while another
+// floods, on the virtual board's recording, each still taking 100 ms
+// (capture_tests --gtest_also_run_disabled_tests --gtest_filter='*MeasureStillLatency*').
+TEST(CaptureDaemon, DISABLED_MeasureStillLatencyUnderAFlood) {
+  const std::string recording = PROPCAM_SOURCE_DIR "/board/virtual/recordings/living_room";
+  FloodBenchOptions o;
+  o.camera_id = "replay:" + recording;
+  o.stream = StreamConfig{PixelFormat::YUYV, 640, 480, 0};
+  o.still_time = 100ms;
+  o.flood_depth = 64;
+  o.stills = 10;
+  const FloodBenchResult r = measure_still_latency_under_flood(
+      [recording](const std::string&) { return std::make_unique<ReplaySource>(recording); }, o);
+  std::printf("flood of %d requests, stills of %lld ms: %d stills in %.1f s, latency mean %.0f p95 %.0f max %.0f ms; "
+              "flood: %llu stills, %llu refused\n",
+              o.flood_depth, static_cast<long long>(o.still_time.count()), r.stills, r.seconds, r.latency.mean_ms,
+              r.latency.p95_ms, r.latency.max_ms, static_cast<unsigned long long>(r.flood_stills),
+              static_cast<unsigned long long>(r.flood_refused));
 }
 
 // Not run by default: prints the daemon's figures

@@ -1,6 +1,6 @@
 // Test-only pieces for the daemon tests: a synthetic camera whose frames
 // carry their sequence number in every byte's pattern (so a client can check
-// it got exactly the frame sent) and that can be gated frame by frame,
+// it got exactly the frame sent) and that can be gated frame by frame (and still by still),
 // unplugged and made to fail its reopening; a raw socket client for
 // malformed traffic; bounded waits.
 #pragma once
@@ -82,6 +82,9 @@ struct TestWorld {
   int fail_opens = 0;        // the factory throws this many times
   bool unplug = false;       // the next next_frame returns DeviceLost
   int end_after = -1;        // EndOfStream once this many frames were delivered
+  int still_permits = -1;    // stills the camera may still take; -1: no gate
+  int stills_started = 0;    // capture_still calls, the ones waiting at the gate included
+  int stills_taken = 0;
   std::uint64_t sequence = 0;
   int open_attempts = 0;
   int starts = 0;
@@ -100,6 +103,28 @@ struct TestWorld {
       permits = -1;
     }
     cv.notify_all();
+  }
+  void allow_stills(int n) {
+    {
+      std::lock_guard lock(mu);
+      still_permits = still_permits < 0 ? n : still_permits + n;
+    }
+    cv.notify_all();
+  }
+  void free_stills() {
+    {
+      std::lock_guard lock(mu);
+      still_permits = -1;
+    }
+    cv.notify_all();
+  }
+  int started_stills() {
+    std::lock_guard lock(mu);
+    return stills_started;
+  }
+  int taken_stills() {
+    std::lock_guard lock(mu);
+    return stills_taken;
   }
   void pull_the_plug() {
     {
@@ -167,7 +192,18 @@ class TestSource final : public FrameSource {
     return CaptureResult{CaptureStatus::Ok, make_frame(config_, seq, exposure), ""};
   }
 
-  CaptureResult capture_still(const std::optional<StreamConfig>& still, std::chrono::milliseconds) override {
+  // Waits at the world's still gate for at most `timeout`.
+  CaptureResult capture_still(const std::optional<StreamConfig>& still, std::chrono::milliseconds timeout) override {
+    {
+      std::unique_lock lock(world_->mu);
+      auto& w = *world_;
+      ++w.stills_started;
+      w.cv.notify_all();
+      if (!w.cv.wait_for(lock, timeout, [&] { return w.still_permits != 0; }))
+        return CaptureResult{CaptureStatus::Timeout, std::nullopt, "no still permit"};
+      if (w.still_permits > 0) --w.still_permits;
+      ++w.stills_taken;
+    }
     StreamConfig c = still.value_or(StreamConfig{PixelFormat::RGB24, 320, 240, 0});
     return CaptureResult{CaptureStatus::Ok, make_frame(c, 1'000'000 + stills_++, std::nullopt), ""};
   }

@@ -51,6 +51,35 @@ struct DaemonBenchResult {
 // and comes first; at least one must be set). Throws on socket errors.
 DaemonBenchResult measure_daemon_throughput(const FrameSourceFactory& factory, const DaemonBenchOptions& options);
 
+// A still's latency for a well-behaved client while another client floods
+// the daemon with still requests: both over real sockets to a server in this
+// process. The flooding client keeps `flood_depth` requests sent and not yet
+// answered (refused ones are sent again at once); the well-behaved one takes
+// `stills` stills one after another. Each still takes `still_time` in the
+// camera (the source is wrapped), as a real camera's does: it stops the
+// viewfinder, reconfigures and lets exposure settle.
+struct FloodBenchOptions {
+  std::string socket_path;  // empty: a socket in a fresh temporary folder
+  std::string camera_id = "synthetic";
+  StreamConfig stream{PixelFormat::YUYV, 640, 480, 30};
+  std::chrono::milliseconds still_time{100};
+  int flood_depth = 64;
+  int stills = 20;
+  std::chrono::milliseconds still_timeout{600000};  // the well-behaved client's wait for one still
+};
+
+struct FloodBenchResult {
+  int stills = 0;                     // taken by the well-behaved client
+  LatencyStats latency;               // its request-to-still time
+  std::uint64_t flood_stills = 0;     // flood requests answered with a still
+  std::uint64_t flood_refused = 0;    // flood requests answered with an error
+  double seconds = 0;
+};
+
+// Throws on socket errors and when a well-behaved still fails.
+FloodBenchResult measure_still_latency_under_flood(const FrameSourceFactory& factory,
+                                                   const FloodBenchOptions& options);
+
 // A camera-free source for the bench: RGB24 / BGR24 / YUYV / UYVY / GREY /
 // NV12 frames of a moving pattern, paced at the config's fps (0: as fast
 // as it can), timestamped when each frame is made.

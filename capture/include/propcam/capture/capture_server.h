@@ -9,7 +9,9 @@
 // its allowed slots misses frames (counted), a client whose socket is full
 // misses frames and is dropped after a bound, and a client that goes away
 // has its slots freed. Commands that touch the camera run on the camera
-// thread between frames.
+// thread between frames, taken from the clients in turn; a client has a
+// bounded number of them waiting, they go when it does, and a connection
+// that stays silent is closed (so idle connections cannot fill the server).
 #pragma once
 
 #include <chrono>
@@ -27,6 +29,13 @@ namespace propcam::capture {
 // Opens a camera by id; throws (or returns null) when it cannot.
 using FrameSourceFactory = std::function<std::unique_ptr<FrameSource>(const std::string& camera_id)>;
 
+// Camera commands (select, configure, controls, still) one client may have
+// queued or running; one more is answered with an Error and not queued.
+inline constexpr int kMaxRequestsPerClient = 8;
+// A connection that sends nothing for this long, with no command of its own
+// queued or running, is closed.
+inline constexpr std::chrono::milliseconds kIdleTimeout{30000};
+
 struct CaptureServerOptions {
   std::string socket_path = "/run/propcam/capture.sock";
   std::string camera_id;
@@ -35,6 +44,8 @@ struct CaptureServerOptions {
   int max_held_slots = 2;             // frames one client may hold at a time
   int max_stalled_frames = 32;        // frames in a row a full socket may miss before the client is dropped
   int max_clients = 64;
+  int max_requests_per_client = kMaxRequestsPerClient;
+  std::chrono::milliseconds idle_timeout = kIdleTimeout;  // 0: connections never time out
   std::chrono::milliseconds frame_timeout{100};   // next_frame's wait (commands run between frames)
   std::chrono::milliseconds reopen_backoff_min{100};
   std::chrono::milliseconds reopen_backoff_max{2000};
@@ -51,6 +62,13 @@ struct CaptureServerOptions {
   // camera thread. Unset: no cap.
   std::function<void()> heartbeat;
   std::chrono::milliseconds heartbeat_interval{1000};
+};
+
+// Camera commands since start().
+struct RequestCounts {
+  std::uint64_t run = 0;      // run on the camera thread
+  std::uint64_t refused = 0;  // over the client's limit: answered with an Error
+  std::uint64_t dropped = 0;  // still queued when their client left: never run
 };
 
 class CaptureServer {
@@ -73,6 +91,7 @@ class CaptureServer {
   void wait();
 
   protocol::Status status() const;
+  RequestCounts request_counts() const;
   const std::string& socket_path() const;
 
  private:
