@@ -200,6 +200,15 @@ void check_is_a_file(const std::string& path) {
     throw std::runtime_error("'" + path + "' is a folder, not an image file");
 }
 
+void throw_if_damaged(OIIO::ImageInput& input, const std::string& path) {
+  // libjpeg reads a cut-off JPEG to the end, fills the rest grey and only
+  // warns ("Premature end of JPEG file"): OpenImageIO keeps that as an error
+  // while reporting success.
+  if (input.has_error())
+    throw std::runtime_error("image '" + path + "' is damaged or cut short (" + input.geterror() +
+                             "); copy the file again or take the photo again");
+}
+
 }  // namespace
 
 cv::Mat read_image_float(const std::string& path) {
@@ -213,23 +222,15 @@ cv::Mat read_image_float(const std::string& path) {
   cv::Mat image(spec.height, spec.width, CV_32FC(spec.nchannels));
   if (!input->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, image.data))
     throw std::runtime_error("cannot read image '" + path + "': " + input->geterror());
-  // libjpeg reads a cut-off JPEG to the end, fills the rest grey and only
-  // warns ("Premature end of JPEG file"): OpenImageIO keeps that as an error
-  // while reporting success.
-  if (input->has_error())
-    throw std::runtime_error("image '" + path + "' is damaged or cut short (" + input->geterror() +
-                             "); copy the file again or take the photo again");
+  throw_if_damaged(*input, path);
   input->close();
   return image;
 }
 
-cv::Mat load_photo_linear(const std::string& path) {
-  check_is_a_file(path);
-  auto input = OIIO::ImageInput::open(path);
-  if (!input) throw std::runtime_error("cannot open photo '" + path + "': " + OIIO::geterror());
-  const OIIO::ImageSpec spec = input->spec();
-  input->close();
-  cv::Mat raw = read_image_float(path);
+namespace {
+
+// Rows as stored (any channel count, float) -> linear RGB CV_32FC3.
+cv::Mat stored_rows_to_linear(const cv::Mat& raw, bool stored_linear) {
   cv::Mat rgb;
   if (raw.channels() <= 2) {
     cv::Mat grey;
@@ -238,7 +239,6 @@ cv::Mat load_photo_linear(const std::string& path) {
   } else {
     rgb = to_three_channels(raw);
   }
-  const bool stored_linear = spec.format.is_floating_point() || is_float_format(path);
   if (!stored_linear) {
     for (int y = 0; y < rgb.rows; ++y) {
       float* p = rgb.ptr<float>(y);
@@ -250,6 +250,120 @@ cv::Mat load_photo_linear(const std::string& path) {
   cv::max(rgb, 0.0, rgb);
   cv::min(rgb, std::numeric_limits<float>::max(), rgb);  // +inf -> largest finite
   return rgb;
+}
+
+bool stored_as_linear(const OIIO::ImageSpec& spec, const std::string& path) {
+  return spec.format.is_floating_point() || is_float_format(path);
+}
+
+// Same folder (so rename is atomic), same extension (so the writer picks the format).
+std::filesystem::path temp_path_beside(const std::string& path) {
+  const std::filesystem::path final_path(path);
+  std::string temp_name = final_path.stem().string();
+  temp_name.insert(0, 1, '.');
+  temp_name += ".tmp" + std::to_string(::getpid()) + final_path.extension().string();
+  return final_path.parent_path() / temp_name;
+}
+
+
+}  // namespace
+
+cv::Mat load_photo_linear(const std::string& path) {
+  check_is_a_file(path);
+  auto input = OIIO::ImageInput::open(path);
+  if (!input) throw std::runtime_error("cannot open photo '" + path + "': " + OIIO::geterror());
+  const OIIO::ImageSpec spec = input->spec();
+  input->close();
+  return stored_rows_to_linear(read_image_float(path), stored_as_linear(spec, path));
+}
+
+struct PhotoRowReader::Impl {
+  std::string path;
+  std::unique_ptr<OIIO::ImageInput> input;
+  int channels = 0;
+  bool stored_linear = false;
+  int next_row = 0;
+};
+
+PhotoRowReader::PhotoRowReader(const std::string& path) : impl_(std::make_unique<Impl>()) {
+  check_is_a_file(path);
+  impl_->path = path;
+  impl_->input = OIIO::ImageInput::open(path);
+  if (!impl_->input) throw std::runtime_error("cannot open photo '" + path + "': " + OIIO::geterror());
+  const OIIO::ImageSpec& spec = impl_->input->spec();
+  if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0)
+    throw std::runtime_error("image '" + path + "' has no pixels");
+  if (spec.nchannels > CV_CN_MAX)
+    throw std::runtime_error("image '" + path + "' has " + std::to_string(spec.nchannels) + " channels");
+  impl_->channels = spec.nchannels;
+  impl_->stored_linear = stored_as_linear(spec, path);
+  size_ = {spec.width, spec.height};
+}
+
+PhotoRowReader::~PhotoRowReader() = default;
+
+cv::Mat PhotoRowReader::read(int first_row, int rows) {
+  if (first_row != impl_->next_row || rows <= 0 || first_row + rows > size_.height)
+    throw std::invalid_argument("PhotoRowReader: rows are read top to bottom, within the image");
+  cv::Mat raw(rows, size_.width, CV_32FC(impl_->channels));
+  const int y0 = impl_->input->spec().y + first_row;
+  if (!impl_->input->read_scanlines(0, 0, y0, y0 + rows, 0, 0, impl_->channels, OIIO::TypeDesc::FLOAT, raw.data))
+    throw std::runtime_error("cannot read image '" + impl_->path + "': " + impl_->input->geterror());
+  throw_if_damaged(*impl_->input, impl_->path);
+  impl_->next_row = first_row + rows;
+  return stored_rows_to_linear(raw, impl_->stored_linear);
+}
+
+struct ImageRowWriter::Impl {
+  std::string path;
+  std::filesystem::path temp;
+  std::unique_ptr<OIIO::ImageOutput> output;
+  bool float_file = false;
+  cv::Size size;
+  int next_row = 0;
+  bool finished = false;
+};
+
+ImageRowWriter::ImageRowWriter(const std::string& path, cv::Size size) : impl_(std::make_unique<Impl>()) {
+  if (size.width <= 0 || size.height <= 0) throw std::runtime_error("refusing to write an empty image to '" + path + "'");
+  impl_->path = path;
+  impl_->size = size;
+  impl_->float_file = is_float_format(path);
+  impl_->temp = temp_path_beside(path);
+  impl_->output = OIIO::ImageOutput::create(path);
+  if (!impl_->output) throw std::runtime_error("no image writer for '" + path + "': " + OIIO::geterror());
+  OIIO::ImageSpec spec(size.width, size.height, 3, impl_->float_file ? OIIO::TypeDesc::FLOAT : OIIO::TypeDesc::UINT8);
+  if (impl_->float_file) spec.attribute("compression", "zip");
+  if (!impl_->output->open(impl_->temp.string(), spec))
+    throw std::runtime_error("cannot create '" + impl_->temp.string() + "': " + impl_->output->geterror());
+}
+
+ImageRowWriter::~ImageRowWriter() {
+  if (impl_->finished) return;
+  impl_->output->close();
+  std::error_code ec;
+  std::filesystem::remove(impl_->temp, ec);
+}
+
+void ImageRowWriter::write(const cv::Mat& linear_rows) {
+  if (linear_rows.type() != CV_32FC3 || linear_rows.cols != impl_->size.width ||
+      impl_->next_row + linear_rows.rows > impl_->size.height)
+    throw std::invalid_argument("ImageRowWriter: CV_32FC3 rows of the image's width, within its height");
+  cv::Mat data = impl_->float_file ? linear_rows : linear_to_srgb8(linear_rows);
+  if (!data.isContinuous()) data = data.clone();
+  const OIIO::TypeDesc type = impl_->float_file ? OIIO::TypeDesc::FLOAT : OIIO::TypeDesc::UINT8;
+  if (!impl_->output->write_scanlines(impl_->next_row, impl_->next_row + data.rows, 0, type, data.data))
+    throw std::runtime_error("cannot write '" + impl_->path + "': " + impl_->output->geterror());
+  impl_->next_row += data.rows;
+}
+
+void ImageRowWriter::finish() {
+  if (impl_->next_row != impl_->size.height)
+    throw std::logic_error("ImageRowWriter: finished with " + std::to_string(impl_->next_row) + " of " +
+                           std::to_string(impl_->size.height) + " rows written");
+  if (!impl_->output->close()) throw std::runtime_error("cannot write '" + impl_->path + "': " + impl_->output->geterror());
+  std::filesystem::rename(impl_->temp, impl_->path);
+  impl_->finished = true;
 }
 
 void write_image(const std::string& path, const cv::Mat& image) {
@@ -272,11 +386,7 @@ void write_image(const std::string& path, const cv::Mat& image) {
   if (!data.isContinuous()) data = data.clone();
 
   const std::filesystem::path final_path(path);
-  // Same folder (so rename is atomic), same extension (so the writer picks the format).
-  std::string temp_name = final_path.stem().string();
-  temp_name.insert(0, 1, '.');
-  temp_name += ".tmp" + std::to_string(::getpid()) + final_path.extension().string();
-  const std::filesystem::path temp_path = final_path.parent_path() / temp_name;
+  const std::filesystem::path temp_path = temp_path_beside(path);
   auto output = OIIO::ImageOutput::create(path);
   if (!output) throw std::runtime_error("no image writer for '" + path + "': " + OIIO::geterror());
   OIIO::ImageSpec spec(data.cols, data.rows, data.channels(), type);

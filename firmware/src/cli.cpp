@@ -30,6 +30,7 @@
 #include "ibl_training.h"
 #include "depth_database_builder.h"
 #include "scene_reference_builder.h"
+#include "working_size.h"
 #include "compositor.h"
 #include "progress.h"
 #include "propcam/capture/image_file.h"
@@ -107,19 +108,95 @@ struct LensPrior {
   }
 };
 
+// `photo` may be the file reduced to the working size: `pixel_scale` (its
+// width over the file's) carries the lens prior, given in the file's pixels, to it.
 inference::SceneModel infer_with_progress(const cv::Mat& photo, const std::string& source, double camera_height,
-                                          const LensPrior& lens, Progress& progress) {
+                                          const LensPrior& lens, Progress& progress, double pixel_scale = 1.0) {
   inference::InferenceOptions options;
   options.camera_height_m = camera_height;
   lens.apply(options.camera, source);
+  options.camera.prior_focal_px *= pixel_scale;
   options.on_stage = [&](const std::string& s) { progress.stage("infer: " + s); };
   inference::SceneModel scene = inference::infer_scene(photo, options);
   scene.source_photo = source;
   return scene;
 }
 
+// A photo larger than the working size (`--working-size`, a pixel budget
+// given as WxH) is inferred and rendered reduced to it (working_size.h).
+long working_pixels_of(const std::string& text) {
+  int w = 0, h = 0;
+  if (!parse_pair(text, w, h, 'x') || w < inference::kMinPhotoSide || h < inference::kMinPhotoSide || w > 16384 ||
+      h > 16384)
+    throw std::invalid_argument("--working-size expects WxH with each side in " +
+                                std::to_string(inference::kMinPhotoSide) + "..16384, got '" + text + "'");
+  return static_cast<long>(w) * h;
+}
+
+// A reduction of `full` to `working` keeps the view: the aspect ratios agree
+// to within a pixel of rounding.
+bool same_view_reduced(cv::Size full, cv::Size working) {
+  if (working.width > full.width || working.height > full.height) return false;
+  const double expected_height = static_cast<double>(working.width) * full.height / full.width;
+  return std::abs(expected_height - working.height) <= 1.0;
+}
+
+// The working copy of a photo file. The full-size pixels are not kept while
+// inference and rendering run (a 12 MP photo is 144 MB as float): the
+// composite reads the file again at the end, and checks it did not change.
+struct LoadedPhoto {
+  cv::Size full_size;
+  cv::Mat working;      // reduced to the working size (the photo itself when it fits)
+  double scale = 1.0;   // working width / full width
+  std::uintmax_t file_bytes = 0;
+  fs::file_time_type file_time;
+  bool reduced() const { return working.size() != full_size; }
+};
+
+// Reads `path` and reduces it to `forced` when given (a scene folder's
+// size), else to fit `budget` pixels.
+LoadedPhoto load_working_photo(const std::string& path, long budget, Progress& progress, cv::Size forced = {}) {
+  progress.stage("loading " + path);
+  LoadedPhoto photo;
+  cv::Mat full = capture::load_photo_linear(path);
+  photo.file_bytes = fs::file_size(path);
+  photo.file_time = fs::last_write_time(path);
+  photo.full_size = full.size();
+  const cv::Size size = forced.width > 0 ? forced : firmware::working_size(full.size(), budget);
+  photo.working = size == full.size() ? full : firmware::reduce_to(full, size);
+  photo.scale = static_cast<double>(size.width) / full.cols;
+  if (photo.reduced())
+    progress.stage("working at " + std::to_string(size.width) + "x" + std::to_string(size.height) + " (the photo is " +
+                   std::to_string(full.cols) + "x" + std::to_string(full.rows) + ")");
+  return photo;
+}
+
+// The composite at the photo's own size, a band of rows at a time: the file
+// read again (checked unchanged), each band taken to the response-linear
+// space, the working composite's change carried onto it, and written out.
+// No full-size image is held (a 12 MP photo is 144 MB as float).
+void write_full_size_composite(const std::string& photo_path, const LoadedPhoto& loaded, const std::string& out_path,
+                               const firmware::FullSizeDelivery& delivery, double gamma) {
+  constexpr int kBandRows = 64;
+  const std::string changed = "the photo '" + photo_path + "' changed while it was being composited; nothing was written";
+  if (fs::file_size(photo_path) != loaded.file_bytes || fs::last_write_time(photo_path) != loaded.file_time)
+    throw std::runtime_error(changed);
+  capture::PhotoRowReader in(photo_path);
+  if (in.size() != loaded.full_size) throw std::runtime_error(changed);
+  capture::ImageRowWriter out(out_path, loaded.full_size);
+  for (int y = 0; y < loaded.full_size.height; y += kBandRows) {
+    const int rows = std::min(kBandRows, loaded.full_size.height - y);
+    cv::Mat band = capture::srgb_linear_to_response_linear(in.read(y, rows), gamma);
+    delivery.apply(band, y);
+    out.write(capture::response_linear_to_srgb_linear(band, gamma));
+  }
+  out.finish();
+}
+
+json size_json(const cv::Mat& m) { return json::array({m.cols, m.rows}); }
+
 struct InferArgs {
-  std::string photo, out, lines_csv, size;
+  std::string photo, out, lines_csv, size, working_size = "1024x768";
   double camera_height = 1.5;
   LensPrior lens;
   bool json_out = false;
@@ -146,12 +223,17 @@ int cmd_infer(const InferArgs& a) {
   }
   if (a.photo.empty()) throw std::invalid_argument("infer needs a PHOTO (or --lines FILE --size WxH)");
   if (a.out.empty()) throw std::invalid_argument("infer needs -o SCENE_DIR");
-  progress.stage("loading " + a.photo);
-  const cv::Mat photo = capture::load_photo_linear(a.photo);
-  inference::SceneModel scene = infer_with_progress(photo, a.photo, a.camera_height, a.lens, progress);
+  const LoadedPhoto photo = load_working_photo(a.photo, working_pixels_of(a.working_size), progress);
+  inference::SceneModel scene =
+      infer_with_progress(photo.working, a.photo, a.camera_height, a.lens, progress, photo.scale);
   inference::save_scene(scene, a.out);
   if (a.json_out) {
-    std::cout << json{{"scene", a.out}, {"reports", reports_json(scene)}}.dump(2) << std::endl;
+    std::cout << json{{"scene", a.out},
+                      {"photo_size", {photo.full_size.width, photo.full_size.height}},
+                      {"working_size", size_json(photo.working)},
+                      {"reports", reports_json(scene)}}
+                     .dump(2)
+              << std::endl;
   } else {
     print_reports(scene);
     progress.stage("wrote " + a.out + "/scene.json");
@@ -173,7 +255,7 @@ int renderer_bounces(int cli_bounces) {
 }
 
 struct CompositeArgs {
-  std::string photo, scene_dir, prop, at, out, material, albedo, save_scene;
+  std::string photo, scene_dir, prop, at, out, material, albedo, save_scene, working_size = "1024x768";
   double height = 0, yaw = 0, camera_height = 1.5;
   LensPrior lens;
   int spp = 16, bounces = kDefaultCliBounces;
@@ -272,16 +354,28 @@ int cmd_composite(const CompositeArgs& a) {
   placement.height_m = a.height > 0 ? a.height : natural_height(a.prop, prop);
   placement.yaw_deg = a.yaw;
 
-  progress.stage("loading " + a.photo);
-  const cv::Mat photo = capture::load_photo_linear(a.photo);
   inference::SceneModel scene;
+  LoadedPhoto loaded;
   if (!a.scene_dir.empty()) {
     scene = inference::load_scene(a.scene_dir);
     if (scene.depth.empty())
       throw std::invalid_argument("the scene folder '" + a.scene_dir + "' has no depth.exr: make it again with " +
                                   "`propcam infer PHOTO -o " + a.scene_dir + "`");
+    // The photo is worked at the size the scene was inferred at.
+    loaded = load_working_photo(a.photo, 0, progress, {scene.width, scene.height});
+    if (!same_view_reduced(loaded.full_size, loaded.working.size()))
+      throw std::invalid_argument("the scene folder '" + a.scene_dir + "' was inferred from a " +
+                                  std::to_string(scene.width) + "x" + std::to_string(scene.height) +
+                                  " photo; this photo is " + std::to_string(loaded.full_size.width) + "x" +
+                                  std::to_string(loaded.full_size.height));
   } else {
-    scene = infer_with_progress(photo, a.photo, a.camera_height, a.lens, progress);
+    loaded = load_working_photo(a.photo, working_pixels_of(a.working_size), progress);
+  }
+  const cv::Mat& photo = loaded.working;
+  placement.pixel_u *= static_cast<double>(photo.cols) / loaded.full_size.width;
+  placement.pixel_v *= static_cast<double>(photo.rows) / loaded.full_size.height;
+  if (a.scene_dir.empty()) {
+    scene = infer_with_progress(photo, a.photo, a.camera_height, a.lens, progress, loaded.scale);
     if (!a.json_out) print_reports(scene);
     if (!a.save_scene.empty()) inference::save_scene(scene, a.save_scene);
   }
@@ -323,10 +417,21 @@ int cmd_composite(const CompositeArgs& a) {
     final_image = render::apply_depth_of_field(final_image, result.depth, scene.fx, dof);
     dof_json = {{"aperture_m", dof.aperture_m}, {"focus_m", dof.focus_distance_m}};
   }
-  capture::write_image(a.out, capture::response_linear_to_srgb_linear(final_image, scene.gamma));
+  const cv::Size output_size = loaded.full_size;
+  if (loaded.reduced()) {
+    // The composite at the photo's own size: the working composite's change
+    // carried up onto the full photo, in the same response-linear space.
+    progress.stage("composite at " + std::to_string(output_size.width) + "x" + std::to_string(output_size.height));
+    const firmware::FullSizeDelivery delivery(scene_photo, final_image, result.render.coverage, output_size);
+    write_full_size_composite(a.photo, loaded, a.out, delivery, scene.gamma);
+  } else {
+    capture::write_image(a.out, capture::response_linear_to_srgb_linear(final_image, scene.gamma));
+  }
   const auto& st = result.render.stats;
   const double skipped = st.camera_samples ? static_cast<double>(st.paths_prop_untouched) / st.camera_samples : 0.0;
   json summary = {{"output", a.out},
+                  {"output_size", {output_size.width, output_size.height}},
+                  {"working_size", size_json(photo)},
                   {"prop", a.prop},
                   {"base_world", {result.placed.base_world.x(), result.placed.base_world.y(), result.placed.base_world.z()}},
                   {"height_m", placement.height_m},
@@ -626,6 +731,9 @@ int run_cli(int argc, char** argv) {
                     "Calibrated focal length in pixels at the photo's size (a prior for the camera stage)")
       ->check(within(inference::kFocalPxRange));
   infer->add_flag("--fixed-focal", infer_args.lens.fixed, "Use --focal as the focal length (estimate the rotation only)");
+  infer->add_option("--working-size", infer_args.working_size,
+                    "A larger photo is inferred reduced to this many pixels (WxH), its aspect kept")
+      ->capture_default_str();
   infer->add_flag("--json", infer_args.json_out, "Machine-readable output on stdout");
 
   CompositeArgs comp;
@@ -651,6 +759,10 @@ int run_cli(int argc, char** argv) {
   composite->add_option("--focal", comp.lens.focal_px, "Calibrated focal length in pixels when inferring (a prior)")
       ->check(within(inference::kFocalPxRange));
   composite->add_flag("--fixed-focal", comp.lens.fixed, "Use --focal as the focal length when inferring");
+  composite->add_option("--working-size", comp.working_size,
+                        "A larger photo is inferred and rendered reduced to this many pixels (WxH) and the "
+                        "composite delivered at the photo's size")
+      ->capture_default_str();
   composite->add_option("--save-scene", comp.save_scene, "Also write the inferred scene folder here");
   composite->add_option("-o,--output", comp.out, "Composite image to write (PNG, JPEG or EXR)")->required();
   composite->add_flag("--json", comp.json_out, "Machine-readable summary on stdout");

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <string>
 
 #include "propcam/capture/image_file.h"
@@ -90,6 +91,93 @@ TEST(ImageFile, CameraResponseRoundTripsAndMatchesAPowerLaw) {
   }
   EXPECT_THROW(srgb_linear_to_response_linear(photo, 0.0), std::invalid_argument);
   EXPECT_THROW(response_linear_to_srgb_linear(photo, std::nan("")), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace propcam::capture
+
+namespace propcam::capture {
+namespace {
+
+// A textured 8-bit image (every pixel different), to catch a band in the wrong place.
+cv::Mat pattern8(int width, int height, int channels) {
+  cv::Mat m(height, width, CV_8UC(channels));
+  for (int y = 0; y < height; ++y)
+    for (int x = 0; x < width; ++x)
+      for (int c = 0; c < channels; ++c) m.ptr<uint8_t>(y)[x * channels + c] = static_cast<uint8_t>(x * 7 + y * 13 + c * 50);
+  return m;
+}
+
+void write_raw(const std::string& path, const cv::Mat& m) {
+  OIIO::ImageSpec spec(m.cols, m.rows, m.channels(), m.depth() == CV_8U ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::FLOAT);
+  auto out = OIIO::ImageOutput::create(path);
+  ASSERT_TRUE(out && out->open(path, spec));
+  ASSERT_TRUE(out->write_image(spec.format, m.data) && out->close());
+}
+
+cv::Mat read_in_bands(const std::string& path, int band) {
+  PhotoRowReader reader(path);
+  cv::Mat whole(reader.size(), CV_32FC3);
+  for (int y = 0; y < reader.size().height; y += band) {
+    const int rows = std::min(band, reader.size().height - y);
+    reader.read(y, rows).copyTo(whole.rowRange(y, y + rows));
+  }
+  return whole;
+}
+
+bool identical(const cv::Mat& a, const cv::Mat& b) {
+  return a.size() == b.size() && a.type() == b.type() && cv::norm(a, b, cv::NORM_INF) == 0.0;
+}
+
+TEST(PhotoRowReader, BandsAreWhatTheWholePhotoReadGives) {
+  const std::string rgb = temp("bands_rgb.png"), grey = temp("bands_grey.png"), hdr = temp("bands.exr");
+  write_raw(rgb, pattern8(37, 29, 3));
+  write_raw(grey, pattern8(37, 29, 1));
+  cv::Mat linear;
+  pattern8(37, 29, 3).convertTo(linear, CV_32FC3, 1.0 / 64);
+  write_raw(hdr, linear);
+  for (const std::string& path : {rgb, grey, hdr})
+    for (int band : {1, 8, 29}) EXPECT_TRUE(identical(read_in_bands(path, band), load_photo_linear(path))) << path << " " << band;
+  PhotoRowReader reader(rgb);
+  reader.read(0, 8);
+  EXPECT_THROW(reader.read(4, 4), std::invalid_argument);  // top to bottom only
+}
+
+TEST(PhotoRowReader, AJpegCutShortIsAnError) {
+  const std::string whole = temp("rows_whole.jpg"), half = temp("rows_half.jpg");
+  write_raw(whole, pattern8(256, 192, 3));
+  std::ifstream in(whole, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::ofstream(half, std::ios::binary) << bytes.substr(0, bytes.size() / 2);
+  EXPECT_THROW(read_in_bands(half, 64), std::runtime_error);
+  EXPECT_NO_THROW(read_in_bands(whole, 64));
+}
+
+TEST(ImageRowWriter, BandsWriteWhatWriteImageWrites) {
+  cv::Mat linear;
+  pattern8(41, 23, 3).convertTo(linear, CV_32FC3, 1.0 / 255);
+  for (const std::string ext : {".png", ".exr"}) {
+    const std::string whole = temp("whole_write" + ext), banded = temp("banded_write" + ext);
+    write_image(whole, linear);
+    {
+      ImageRowWriter writer(banded, linear.size());
+      for (int y = 0; y < linear.rows; y += 10) writer.write(linear.rowRange(y, std::min(y + 10, linear.rows)));
+      writer.finish();
+    }
+    EXPECT_TRUE(identical(read_image_float(banded), read_image_float(whole))) << ext;
+  }
+}
+
+TEST(ImageRowWriter, AnUnfinishedWriterLeavesNothing) {
+  const fs::path dir = fs::path(temp("unfinished_dir"));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  {
+    ImageRowWriter writer((dir / "out.png").string(), cv::Size(8, 8));
+    writer.write(cv::Mat(4, 8, CV_32FC3, cv::Scalar::all(0.5)));
+    EXPECT_THROW(writer.finish(), std::logic_error);  // 4 of 8 rows
+  }
+  EXPECT_TRUE(fs::is_empty(dir));
 }
 
 }  // namespace

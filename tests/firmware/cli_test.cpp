@@ -233,6 +233,49 @@ TEST(Cli, UnusablePhotosAreClearErrors) {
   EXPECT_NE(r.out.find("folder"), std::string::npos) << r.out;
 }
 
+// A photo larger than the working size is inferred and rendered reduced and
+// delivered at its own size; away from the prop it is the photo.
+TEST(Cli, ALargerPhotoIsWorkedReducedAndDeliveredAtItsSize) {
+  const std::string scene = temp("scene_working"), out = temp("working_out.png"), again = temp("working_again.png");
+  CliRun r = propcam("infer " + fixture_photo() + " --working-size 80x60 --json -o " + scene);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  json j = json_tail(r.out);
+  EXPECT_EQ(j["photo_size"], json::array({160, 120}));
+  EXPECT_EQ(j["working_size"], json::array({80, 60}));
+
+  r = propcam("composite " + fixture_photo() + " --scene " + scene + " --prop vase --at 80,95 --spp 2 --json -o " + out);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  j = json_tail(r.out);
+  EXPECT_EQ(j["working_size"], json::array({80, 60}));
+  EXPECT_EQ(j["output_size"], json::array({160, 120}));
+  const cv::Mat photo = propcam::capture::load_photo_linear(fixture_photo());
+  const cv::Mat composite = propcam::capture::load_photo_linear(out);
+  ASSERT_EQ(composite.size(), photo.size());
+  // The top rows (the far wall, beyond the prop's reach): the photo, up to 8-bit rounding.
+  const cv::Rect far(0, 0, 160, 20);
+  EXPECT_LT(cv::norm(propcam::capture::linear_to_srgb8(composite(far)), propcam::capture::linear_to_srgb8(photo(far)),
+                     cv::NORM_INF),
+            2.0);
+  // Around the base: the prop is there.
+  EXPECT_GT(cv::norm(composite(cv::Rect(70, 70, 20, 25)), photo(cv::Rect(70, 70, 20, 25)), cv::NORM_INF), 0.05);
+
+  // The same without a scene folder: inferred at the working size on the way.
+  r = propcam("composite " + fixture_photo() + " --working-size 80x60 --prop vase --at 80,95 --spp 2 --json -o " + again);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_EQ(json_tail(r.out)["output_size"], json::array({160, 120}));
+
+  // A scene folder from another photo's size is refused, naming both.
+  r = propcam("composite " + fixture_photo() + " --scene " + scene + " --prop vase --at 80,95 --spp 1 -o " + out +
+              " --working-size 40x30");
+  EXPECT_EQ(r.exit_code, 0) << r.out;  // the scene folder's size wins over --working-size
+  const std::string other = temp("other_aspect.png");
+  propcam::capture::write_image(other, cv::Mat(120, 120, CV_8UC3, cv::Scalar(100, 100, 100)));
+  r = propcam("composite " + other + " --scene " + scene + " --prop vase --at 60,95 --spp 1 -o " + temp("other_out.png"));
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_NE(r.out.find("80x60"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("120x120"), std::string::npos) << r.out;
+}
+
 TEST(Cli, VersionNamesTheProgramAndItsVersion) {
   CliRun r = propcam("--version");
   EXPECT_EQ(r.exit_code, 0) << r.out;

@@ -4,6 +4,8 @@
 #pragma once
 
 #include <opencv2/core.hpp>
+#include <filesystem>
+#include <memory>
 #include <string>
 
 namespace propcam::capture {
@@ -48,5 +50,41 @@ cv::Mat read_image_float(const std::string& path);
 // Float formats (.exr) store the Mat as float; others store 8-bit, and a float
 // Mat is then encoded from linear to sRGB first.
 void write_image(const std::string& path, const cv::Mat& image);
+
+// A photo a band of rows at a time, for images too large to hold whole:
+// each band is exactly what load_photo_linear gives for those rows. Bands are
+// read top to bottom. Errors as load_photo_linear's (a file cut short is
+// found at the band that reaches the cut, or at the last).
+class PhotoRowReader {
+ public:
+  explicit PhotoRowReader(const std::string& path);
+  ~PhotoRowReader();
+  PhotoRowReader(const PhotoRowReader&) = delete;
+  PhotoRowReader& operator=(const PhotoRowReader&) = delete;
+  cv::Size size() const { return size_; }
+  cv::Mat read(int first_row, int rows);  // CV_32FC3 linear RGB
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  cv::Size size_;
+};
+
+// write_image a band of rows at a time: linear CV_32FC3 rows in, stored as
+// write_image would store the whole image. Nothing appears at `path` until
+// finish(); destroyed unfinished, it leaves nothing behind.
+class ImageRowWriter {
+ public:
+  ImageRowWriter(const std::string& path, cv::Size size);
+  ~ImageRowWriter();
+  ImageRowWriter(const ImageRowWriter&) = delete;
+  ImageRowWriter& operator=(const ImageRowWriter&) = delete;
+  void write(const cv::Mat& linear_rows);  // the next rows, top to bottom
+  void finish();
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
 
 }  // namespace propcam::capture

@@ -1,0 +1,193 @@
+#include "working_size.h"
+
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <stdexcept>
+
+namespace propcam::firmware {
+namespace {
+
+// Added to both sides of the ratio composite / photo, so black pixels give a
+// bounded ratio (linear units: a tenth of the darkest sRGB step above 0).
+constexpr float kRatioFloor = 3e-5f;
+// A bounce of light onto a nearly black pixel cannot multiply it more than this.
+constexpr float kMaxRatio = 64.f;
+// Below this coverage the prop's colour is not solved from the pixel (noise
+// over a tiny share); it is taken from covered neighbours instead.
+constexpr float kMinCoverageForColour = 0.05f;
+// Upsampling reads one working pixel around each full one; the fills reach
+// this many pixels beyond what is known.
+constexpr int kFillReach = 2;
+
+// Gives every unknown pixel of `values` (weight 0) the mean of its known
+// 3x3 neighbours, growing by one pixel per pass, for at most `passes` passes.
+void fill_unknown(cv::Mat& values, cv::Mat& known, int passes) {
+  for (int pass = 0; pass < passes; ++pass) {
+    const int known_count = cv::countNonZero(known);
+    if (known_count == 0 || known_count == static_cast<int>(known.total())) return;
+    cv::Mat weighted, weight;
+    cv::Mat known3;
+    cv::merge(std::vector<cv::Mat>{known, known, known}, known3);
+    cv::boxFilter(values.mul(known3), weighted, -1, cv::Size(3, 3), cv::Point(-1, -1), false, cv::BORDER_REPLICATE | cv::BORDER_ISOLATED);
+    cv::boxFilter(known, weight, -1, cv::Size(3, 3), cv::Point(-1, -1), false, cv::BORDER_REPLICATE | cv::BORDER_ISOLATED);
+    cv::Mat grown = known.clone();
+    for (int y = 0; y < values.rows; ++y) {
+      const float* k = known.ptr<float>(y);
+      const float* w = weight.ptr<float>(y);
+      const auto* sum = weighted.ptr<cv::Vec3f>(y);
+      auto* v = values.ptr<cv::Vec3f>(y);
+      float* g = grown.ptr<float>(y);
+      for (int x = 0; x < values.cols; ++x)
+        if (k[x] == 0.f && w[x] > 0.f) {
+          v[x] = sum[x] / w[x];
+          g[x] = 1.f;
+        }
+    }
+    known = grown;
+  }
+}
+
+}  // namespace
+
+cv::Size working_size(cv::Size full, long max_pixels) {
+  if (full.width <= 0 || full.height <= 0) throw std::invalid_argument("working_size: the photo has no pixels");
+  if (max_pixels <= 0) throw std::invalid_argument("working_size: the pixel budget must be positive");
+  const double pixels = static_cast<double>(full.width) * full.height;
+  if (pixels <= static_cast<double>(max_pixels)) return full;
+  const double scale = std::sqrt(static_cast<double>(max_pixels) / pixels);
+  cv::Size size(std::max(1, static_cast<int>(std::floor(full.width * scale))),
+                std::max(1, static_cast<int>(std::floor(full.height * scale))));
+  // A side held at one pixel gives the budget to the other.
+  if (static_cast<long>(size.width) * size.height > max_pixels) {
+    if (size.height == 1) size.width = static_cast<int>(std::min<long>(max_pixels, full.width));
+    else size.height = static_cast<int>(std::min<long>(max_pixels, full.height));
+  }
+  return size;
+}
+
+cv::Mat reduce_to(const cv::Mat& photo, cv::Size size) {
+  if (photo.size() == size) return photo.clone();
+  cv::Mat out;
+  cv::resize(photo, out, size, 0, 0, cv::INTER_AREA);
+  return out;
+}
+
+FullSizeDelivery::FullSizeDelivery(const cv::Mat& working_photo, const cv::Mat& working_composite,
+                                   const cv::Mat& coverage, cv::Size full_size)
+    : full_size_(full_size), coverage_(coverage.clone()) {
+  if (working_photo.type() != CV_32FC3 || working_composite.type() != CV_32FC3 ||
+      coverage.type() != CV_32F || working_photo.size() != working_composite.size() ||
+      coverage.size() != working_photo.size())
+    throw std::invalid_argument("FullSizeDelivery: CV_32FC3 photo and composite, CV_32F coverage, all one size");
+  if (full_size.width < working_photo.cols || full_size.height < working_photo.rows)
+    throw std::invalid_argument("FullSizeDelivery: the full size is smaller than the working size");
+  const cv::Size ws = working_photo.size();
+
+  // 1. What the prop left alone: no coverage and the composite equal to the photo.
+  cv::Mat& untouched = untouched_;
+  untouched.create(ws, CV_8U);
+  // 2. Outside the prop: the change as a ratio; under it, the ratio of its surroundings.
+  cv::Mat& ratio = ratio_;
+  ratio.create(ws, CV_32FC3);
+  cv::Mat ratio_known(ws, CV_32F);
+  for (int y = 0; y < ws.height; ++y) {
+    const auto* p = working_photo.ptr<cv::Vec3f>(y);
+    const auto* c = working_composite.ptr<cv::Vec3f>(y);
+    const float* m = coverage.ptr<float>(y);
+    auto* r = ratio.ptr<cv::Vec3f>(y);
+    float* known = ratio_known.ptr<float>(y);
+    uchar* u = untouched.ptr<uchar>(y);
+    for (int x = 0; x < ws.width; ++x) {
+      u[x] = m[x] == 0.f && c[x] == p[x];
+      known[x] = m[x] == 0.f ? 1.f : 0.f;
+      for (int k = 0; k < 3; ++k)
+        r[x][k] = m[x] == 0.f ? std::min(kMaxRatio, (std::max(0.f, c[x][k]) + kRatioFloor) / (p[x][k] + kRatioFloor))
+                              : 1.f;
+    }
+  }
+  // Only around the prop is anything unknown: fill there, from the ring of
+  // known pixels just outside it, until the whole region is known.
+  cv::Mat covered = coverage > 0.f;
+  const cv::Rect around = (cv::boundingRect(covered) + cv::Size(2 * kFillReach, 2 * kFillReach) -
+                           cv::Point(kFillReach, kFillReach)) &
+                          cv::Rect(0, 0, ws.width, ws.height);
+  if (!around.empty()) {
+    cv::Mat ratio_around = ratio(around), known_around = ratio_known(around);
+    fill_unknown(ratio_around, known_around, std::max(around.width, around.height));
+  }
+
+  // 3. The prop's own colour: composite = (1 - c) photo ratio + c colour.
+  cv::Mat& colour = colour_;
+  colour.create(ws, CV_32FC3);
+  colour.setTo(cv::Scalar::all(0));
+  cv::Mat colour_known(ws, CV_32F, cv::Scalar(0));
+  for (int y = 0; y < ws.height; ++y) {
+    const auto* p = working_photo.ptr<cv::Vec3f>(y);
+    const auto* c = working_composite.ptr<cv::Vec3f>(y);
+    const auto* r = ratio.ptr<cv::Vec3f>(y);
+    const float* m = coverage.ptr<float>(y);
+    auto* col = colour.ptr<cv::Vec3f>(y);
+    float* known = colour_known.ptr<float>(y);
+    for (int x = 0; x < ws.width; ++x) {
+      if (m[x] < kMinCoverageForColour) continue;
+      for (int k = 0; k < 3; ++k)
+        col[x][k] = std::max(0.f, (c[x][k] - (1.f - m[x]) * p[x][k] * r[x][k]) / m[x]);
+      known[x] = 1.f;
+    }
+  }
+  if (!around.empty()) {
+    cv::Mat colour_around = colour(around), known_around = colour_known(around);
+    fill_unknown(colour_around, known_around, 2 * kFillReach);
+  }
+
+  // 4. The bilinear taps of every full column and row.
+  const auto taps = [](int full, int working) {
+    std::vector<Taps> out(full);
+    const double scale = static_cast<double>(working) / full;
+    for (int i = 0; i < full; ++i) {
+      const double u = std::clamp((i + 0.5) * scale - 0.5, 0.0, working - 1.0);
+      const int lo = static_cast<int>(std::floor(u));
+      out[i] = {lo, std::min(lo + 1, working - 1), static_cast<float>(u - lo)};
+    }
+    return out;
+  };
+  xs_ = taps(full_size.width, ws.width);
+  ys_ = taps(full_size.height, ws.height);
+}
+
+void FullSizeDelivery::apply(cv::Mat& rows, int first_row) const {
+  if (rows.type() != CV_32FC3 || rows.cols != full_size_.width || first_row < 0 ||
+      first_row + rows.rows > full_size_.height)
+    throw std::invalid_argument("FullSizeDelivery::apply: CV_32FC3 rows of the full width, within its height");
+  for (int y = 0; y < rows.rows; ++y) {
+    const Taps ty = ys_[first_row + y];
+    const uchar* u0 = untouched_.ptr<uchar>(ty.lo);
+    const uchar* u1 = untouched_.ptr<uchar>(ty.hi);
+    auto* out = rows.ptr<cv::Vec3f>(y);
+    for (int x = 0; x < rows.cols; ++x) {
+      const Taps tx = xs_[x];
+      if (u0[tx.lo] && u0[tx.hi] && u1[tx.lo] && u1[tx.hi]) continue;
+      const std::array<cv::Point, 4> at{cv::Point(tx.lo, ty.lo), cv::Point(tx.hi, ty.lo), cv::Point(tx.lo, ty.hi),
+                                        cv::Point(tx.hi, ty.hi)};
+      const std::array<float, 4> w{(1 - tx.t) * (1 - ty.t), tx.t * (1 - ty.t), (1 - tx.t) * ty.t, tx.t * ty.t};
+      float m = 0.f;
+      cv::Vec3f r(0, 0, 0), col(0, 0, 0);
+      for (int i = 0; i < 4; ++i) {
+        m += w[i] * coverage_.at<float>(at[i]);
+        r += w[i] * ratio_.at<cv::Vec3f>(at[i]);
+        col += w[i] * colour_.at<cv::Vec3f>(at[i]);
+      }
+      for (int k = 0; k < 3; ++k) out[x][k] = m * col[k] + (1.f - m) * out[x][k] * r[k];
+    }
+  }
+}
+
+void deliver_at_full_size(cv::Mat& full_photo, const cv::Mat& working_photo, const cv::Mat& working_composite,
+                          const cv::Mat& coverage) {
+  FullSizeDelivery(working_photo, working_composite, coverage, full_photo.size()).apply(full_photo, 0);
+}
+
+}  // namespace propcam::firmware

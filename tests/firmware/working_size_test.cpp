@@ -1,0 +1,85 @@
+// Photos larger than the working size: the reduction and the composite
+// carried back up to the photo's size.
+#include <gtest/gtest.h>
+
+#include <opencv2/imgproc.hpp>
+
+#include "working_size.h"
+
+namespace propcam::firmware {
+namespace {
+
+// A photo with detail finer than the working size can hold.
+cv::Mat textured(int width, int height) {
+  cv::Mat m(height, width, CV_32FC3);
+  for (int y = 0; y < height; ++y)
+    for (int x = 0; x < width; ++x)
+      m.at<cv::Vec3f>(y, x) = cv::Vec3f(0.2f + 0.1f * ((x + y) % 2), 0.3f + 0.05f * (x % 3), 0.4f);
+  return m;
+}
+
+TEST(WorkingSize, ReducesToTheBudgetKeepingTheAspect) {
+  EXPECT_EQ(working_size({4000, 3000}, kDefaultWorkingPixels), cv::Size(1024, 768));
+  EXPECT_EQ(working_size({640, 480}, kDefaultWorkingPixels), cv::Size(640, 480));
+  EXPECT_EQ(working_size({11000, 11000}, kDefaultWorkingPixels), cv::Size(886, 886));
+  const cv::Size strip = working_size({20000, 10}, 100);
+  EXPECT_GE(strip.height, 1);
+  EXPECT_LE(static_cast<long>(strip.width) * strip.height, 100);
+  EXPECT_THROW(working_size({0, 10}, 100), std::invalid_argument);
+}
+
+TEST(WorkingSize, WhatThePropLeftAloneStaysBitForBit) {
+  const cv::Mat full = textured(200, 150);
+  const cv::Mat working = reduce_to(full, {50, 38});
+  cv::Mat composite = working.clone();
+  cv::Mat coverage(working.size(), CV_32F, cv::Scalar(0));
+  // A prop in the middle, and the rest of the photo untouched.
+  composite(cv::Rect(20, 15, 6, 6)).setTo(cv::Scalar(0.9, 0.1, 0.1));
+  coverage(cv::Rect(20, 15, 6, 6)).setTo(1.f);
+  cv::Mat delivered = full.clone();
+  deliver_at_full_size(delivered, working, composite, coverage);
+  // Far from the prop (beyond one working pixel of interpolation) nothing moved.
+  cv::Mat far_mask(full.size(), CV_8U, cv::Scalar(255));
+  far_mask(cv::Rect(70, 50, 40, 40)).setTo(0);
+  EXPECT_EQ(cv::norm(delivered, full, cv::NORM_INF, far_mask), 0.0);
+  // Inside the prop: its colour.
+  const cv::Vec3f inside = delivered.at<cv::Vec3f>(72, 92);
+  EXPECT_NEAR(inside[0], 0.9f, 1e-4);
+  EXPECT_NEAR(inside[1], 0.1f, 1e-4);
+}
+
+TEST(WorkingSize, AShadowDarkensTheFullPhotosOwnDetail) {
+  const cv::Mat full = textured(200, 150);
+  const cv::Mat working = reduce_to(full, {50, 38});
+  cv::Mat composite = working.clone();
+  composite(cv::Rect(10, 10, 20, 10)) *= 0.5;  // a shadow: half the light, no prop
+  const cv::Mat coverage(working.size(), CV_32F, cv::Scalar(0));
+  cv::Mat delivered = full.clone();
+  deliver_at_full_size(delivered, working, composite, coverage);
+  // Well inside the shadow every full pixel is halved, its texture kept.
+  for (int y = 50; y < 70; ++y)
+    for (int x = 50; x < 110; ++x)
+      for (int c = 0; c < 3; ++c)
+        EXPECT_NEAR(delivered.at<cv::Vec3f>(y, x)[c], 0.5f * full.at<cv::Vec3f>(y, x)[c], 1e-3) << x << "," << y;
+}
+
+TEST(WorkingSize, BandsGiveWhatTheWholeImageGives) {
+  const cv::Mat full = textured(97, 61);
+  const cv::Mat working = reduce_to(full, {31, 19});
+  cv::Mat composite = working * 0.8;
+  cv::Mat coverage(working.size(), CV_32F, cv::Scalar(0));
+  coverage(cv::Rect(10, 5, 5, 5)).setTo(0.5f);
+  cv::Mat whole = full.clone();
+  deliver_at_full_size(whole, working, composite, coverage);
+  const FullSizeDelivery delivery(working, composite, coverage, full.size());
+  cv::Mat banded = full.clone();
+  for (int y = 0; y < full.rows; y += 7) {
+    cv::Mat band = banded.rowRange(y, std::min(y + 7, full.rows));
+    delivery.apply(band, y);
+  }
+  EXPECT_EQ(cv::norm(whole, banded, cv::NORM_INF), 0.0);
+  EXPECT_TRUE(cv::checkRange(whole));
+}
+
+}  // namespace
+}  // namespace propcam::firmware
