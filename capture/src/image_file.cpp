@@ -1,6 +1,7 @@
 #include "propcam/capture/image_file.h"
 
 #include <OpenImageIO/imageio.h>
+#include <opencv2/imgproc.hpp>
 
 #include <algorithm>
 #include <array>
@@ -312,6 +313,44 @@ cv::Mat PhotoRowReader::read(int first_row, int rows) {
   throw_if_damaged(*impl_->input, impl_->path);
   impl_->next_row = first_row + rows;
   return stored_rows_to_linear(raw, impl_->stored_linear);
+}
+
+cv::Size photo_file_size(const std::string& path) {
+  check_is_a_file(path);
+  auto input = OIIO::ImageInput::open(path);
+  if (!input) throw std::runtime_error("cannot open photo '" + path + "': " + OIIO::geterror());
+  const OIIO::ImageSpec& spec = input->spec();
+  if (spec.width <= 0 || spec.height <= 0) throw std::runtime_error("image '" + path + "' has no pixels");
+  return {spec.width, spec.height};
+}
+
+cv::Mat load_photo_reduced(const std::string& path, cv::Size size) {
+  constexpr int kBandRows = 64;
+  PhotoRowReader reader(path);
+  const cv::Size full = reader.size();
+  if (size.width <= 0 || size.height <= 0 || size.width > full.width || size.height > full.height)
+    throw std::invalid_argument("load_photo_reduced: the size must lie within the photo's");
+  // Separable area averaging: each band is reduced across by cv::resize
+  // (INTER_AREA), then every input row adds to the output rows its unit
+  // interval overlaps, weighted by the overlap.
+  cv::Mat sum(size, CV_64FC3, cv::Scalar::all(0));
+  const double rows_per_output = static_cast<double>(full.height) / size.height;
+  cv::Mat across, across64;
+  for (int y = 0; y < full.height; y += kBandRows) {
+    const int rows = std::min(kBandRows, full.height - y);
+    cv::resize(reader.read(y, rows), across, cv::Size(size.width, rows), 0, 0, cv::INTER_AREA);
+    across.convertTo(across64, CV_64FC3);
+    for (int r = 0; r < rows; ++r) {
+      const double top = (y + r) / rows_per_output, bottom = (y + r + 1) / rows_per_output;  // in output rows
+      for (int j = static_cast<int>(top); j < size.height && j < bottom; ++j) {
+        const double overlap = std::min(bottom, j + 1.0) - std::max(top, static_cast<double>(j));
+        if (overlap > 0) cv::scaleAdd(across64.row(r), overlap, sum.row(j), sum.row(j));
+      }
+    }
+  }
+  cv::Mat out;
+  sum.convertTo(out, CV_32FC3);
+  return out;
 }
 
 struct ImageRowWriter::Impl {

@@ -158,16 +158,24 @@ struct LoadedPhoto {
 LoadedPhoto load_working_photo(const std::string& path, long budget, Progress& progress, cv::Size forced = {}) {
   progress.stage("loading " + path);
   LoadedPhoto photo;
-  cv::Mat full = capture::load_photo_linear(path);
+  photo.full_size = capture::photo_file_size(path);
+  firmware::check_photo_pixels(path, photo.full_size);
+  const cv::Size size = forced.width > 0 ? forced : firmware::working_size(photo.full_size, budget);
+  if (size.width > photo.full_size.width || size.height > photo.full_size.height)
+    throw std::invalid_argument("the photo '" + path + "' is " + std::to_string(photo.full_size.width) + "x" +
+                                std::to_string(photo.full_size.height) + ", smaller than the scene folder's " +
+                                std::to_string(size.width) + "x" + std::to_string(size.height));
+  // Reduced while it is read, a band of rows at a time: the full-size photo
+  // is never held whole.
+  photo.working = size == photo.full_size ? capture::load_photo_linear(path) : capture::load_photo_reduced(path, size);
+  if (photo.working.size() != photo.full_size && size == photo.full_size)
+    throw std::runtime_error("the photo '" + path + "' changed while it was being read");
   photo.file_bytes = fs::file_size(path);
   photo.file_time = fs::last_write_time(path);
-  photo.full_size = full.size();
-  const cv::Size size = forced.width > 0 ? forced : firmware::working_size(full.size(), budget);
-  photo.working = size == full.size() ? full : firmware::reduce_to(full, size);
-  photo.scale = static_cast<double>(size.width) / full.cols;
+  photo.scale = static_cast<double>(size.width) / photo.full_size.width;
   if (photo.reduced())
     progress.stage("working at " + std::to_string(size.width) + "x" + std::to_string(size.height) + " (the photo is " +
-                   std::to_string(full.cols) + "x" + std::to_string(full.rows) + ")");
+                   std::to_string(photo.full_size.width) + "x" + std::to_string(photo.full_size.height) + ")");
   return photo;
 }
 

@@ -52,6 +52,15 @@ void fill_unknown(cv::Mat& values, cv::Mat& known, int passes) {
 
 }  // namespace
 
+void check_photo_pixels(const std::string& path, cv::Size size) {
+  const double pixels = static_cast<double>(size.width) * size.height;
+  if (pixels > static_cast<double>(kMaxPhotoPixels))
+    throw std::invalid_argument("the photo '" + path + "' is " + std::to_string(size.width) + "x" +
+                                std::to_string(size.height) + " (" + std::to_string(static_cast<long>(pixels / 1e6)) +
+                                " megapixels); PropCam takes photos of at most " +
+                                std::to_string(kMaxPhotoPixels / 1'000'000) + " megapixels");
+}
+
 cv::Size working_size(cv::Size full, long max_pixels) {
   if (full.width <= 0 || full.height <= 0) throw std::invalid_argument("working_size: the photo has no pixels");
   if (max_pixels <= 0) throw std::invalid_argument("working_size: the pixel budget must be positive");

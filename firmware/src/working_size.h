@@ -10,6 +10,7 @@
 #pragma once
 
 #include <opencv2/core.hpp>
+#include <string>
 #include <vector>
 
 namespace propcam::firmware {
@@ -17,6 +18,14 @@ namespace propcam::firmware {
 // About 0.8 megapixels (1024x768): inference's figures and its ≤ 3 s are
 // measured at this size, and a 12 MP photo's working copy costs 9 MB.
 inline constexpr long kDefaultWorkingPixels = 1024L * 768L;
+
+// The largest photo taken: a 200-megapixel phone sensor's. Reading one costs
+// a band of rows in memory, but its decoding time grows with it.
+inline constexpr long kMaxPhotoPixels = 200'000'000L;
+
+// Throws std::invalid_argument naming the photo, its size and the limit
+// when it has more than kMaxPhotoPixels.
+void check_photo_pixels(const std::string& path, cv::Size size);
 
 // The size a photo of `full` pixels is worked at: itself when it fits
 // `max_pixels`, else the same aspect ratio reduced to fit (each side >= 1).

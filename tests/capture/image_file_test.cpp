@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <OpenImageIO/imageio.h>
+#include <opencv2/imgproc.hpp>
 
 #include <cmath>
 #include <filesystem>
@@ -178,6 +179,28 @@ TEST(ImageRowWriter, AnUnfinishedWriterLeavesNothing) {
     EXPECT_THROW(writer.finish(), std::logic_error);  // 4 of 8 rows
   }
   EXPECT_TRUE(fs::is_empty(dir));
+}
+
+}  // namespace
+}  // namespace propcam::capture
+
+namespace propcam::capture {
+namespace {
+
+TEST(LoadPhotoReduced, IsAreaAveragingOfTheWholePhoto) {
+  const std::string path = temp("reduce_me.png");
+  cv::Mat pattern(301, 403, CV_8UC3);
+  cv::randu(pattern, 0, 255);
+  write_image(path, pattern);
+  EXPECT_EQ(photo_file_size(path), cv::Size(403, 301));
+  const cv::Mat whole = load_photo_linear(path);
+  for (const cv::Size size : {cv::Size(100, 75), cv::Size(403, 301), cv::Size(37, 11), cv::Size(1, 1)}) {
+    cv::Mat expected;
+    cv::resize(whole, expected, size, 0, 0, cv::INTER_AREA);
+    EXPECT_LT(cv::norm(load_photo_reduced(path, size), expected, cv::NORM_INF), 1e-5) << size;
+  }
+  EXPECT_THROW(load_photo_reduced(path, {404, 301}), std::invalid_argument);
+  EXPECT_THROW(photo_file_size(temp("no_such_photo.png")), std::runtime_error);
 }
 
 }  // namespace

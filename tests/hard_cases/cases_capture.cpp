@@ -143,6 +143,17 @@ void add_capture_cases(std::vector<HardCase>& cases) {
                      fs::create_directories(dir / "photo.png");
                      capture::load_photo_linear((dir / "photo.png").string());
                    }});
+  cases.push_back({"HugeGreyPngReduced", m,
+                   "a 4000x3000 one-channel PNG (a few hundred KB), reduced while read to 400x300",
+                   "output: 400x300 linear RGB, the grey level kept", Expect::Result, {}, [](Digest& d) {
+                     ScratchDir dir("HugeGreyPngReduced");
+                     const fs::path path = dir / "grey.png";
+                     capture::write_image(path.string(), cv::Mat(3000, 4000, CV_8UC1, cv::Scalar(128)));
+                     const cv::Mat small = capture::load_photo_reduced(path.string(), {400, 300});
+                     check(small.size() == cv::Size(400, 300) && small.type() == CV_32FC3, "400x300 CV_32FC3");
+                     check(std::abs(cv::mean(small)[1] - capture::srgb_to_linear(128 / 255.f)) < 1e-4, "grey kept");
+                     d.mat(small);
+                   }});
   cases.push_back({"TextFileNamedPng", m, "a .png file holding a line of text", "error naming the file",
                    Expect::Error, {"notes.png"}, [](Digest&) {
                      ScratchDir dir("TextFileNamedPng");

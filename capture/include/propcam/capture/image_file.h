@@ -70,6 +70,16 @@ class PhotoRowReader {
   cv::Size size_;
 };
 
+// The pixel size a photo file declares (its header only). Throws as
+// load_photo_linear does for a missing file, a folder or an unreadable one.
+cv::Size photo_file_size(const std::string& path);
+
+// The photo reduced to `size` (no larger than the file's) by area averaging,
+// read a band of rows at a time: memory for the reduced photo and one band,
+// whatever the file's size. Equal to cv::resize(load_photo_linear(path),
+// size, INTER_AREA) up to float rounding.
+cv::Mat load_photo_reduced(const std::string& path, cv::Size size);
+
 // write_image a band of rows at a time: linear CV_32FC3 rows in, stored as
 // write_image would store the whole image. Nothing appears at `path` until
 // finish(); destroyed unfinished, it leaves nothing behind.
