@@ -126,79 +126,25 @@ inference::SceneModel infer_with_progress(const cv::Mat& photo, const std::strin
 // given as WxH) is inferred and rendered reduced to it (working_size.h).
 long working_pixels_of(const std::string& text) {
   int w = 0, h = 0;
-  if (!parse_pair(text, w, h, 'x') || w < inference::kMinPhotoSide || h < inference::kMinPhotoSide || w > 16384 ||
-      h > 16384)
+  constexpr int kMaxWorkingSide = 16384;
+  if (!parse_pair(text, w, h, 'x') || w < inference::kMinPhotoSide || h < inference::kMinPhotoSide ||
+      w > kMaxWorkingSide || h > kMaxWorkingSide)
     throw std::invalid_argument("--working-size expects WxH with each side in " +
-                                std::to_string(inference::kMinPhotoSide) + "..16384, got '" + text + "'");
+                                std::to_string(inference::kMinPhotoSide) + ".." + std::to_string(kMaxWorkingSide) +
+                                ", got '" + text + "'");
   return static_cast<long>(w) * h;
 }
 
-// A reduction of `full` to `working` keeps the view: the aspect ratios agree
-// to within a pixel of rounding.
-bool same_view_reduced(cv::Size full, cv::Size working) {
-  if (working.width > full.width || working.height > full.height) return false;
-  const double expected_height = static_cast<double>(working.width) * full.height / full.width;
-  return std::abs(expected_height - working.height) <= 1.0;
-}
-
-// The working copy of a photo file. The full-size pixels are not kept while
-// inference and rendering run (a 12 MP photo is 144 MB as float): the
-// composite reads the file again at the end, and checks it did not change.
-struct LoadedPhoto {
-  cv::Size full_size;
-  cv::Mat working;      // reduced to the working size (the photo itself when it fits)
-  double scale = 1.0;   // working width / full width
-  std::uintmax_t file_bytes = 0;
-  fs::file_time_type file_time;
-  bool reduced() const { return working.size() != full_size; }
-};
-
-// Reads `path` and reduces it to `forced` when given (a scene folder's
-// size), else to fit `budget` pixels.
-LoadedPhoto load_working_photo(const std::string& path, long budget, Progress& progress, cv::Size forced = {}) {
+// The photo at its working size, with the progress lines a user sees.
+firmware::WorkingPhoto load_photo_for_work(const std::string& path, long budget, Progress& progress,
+                                           cv::Size forced = {}) {
   progress.stage("loading " + path);
-  LoadedPhoto photo;
-  photo.full_size = capture::photo_file_size(path);
-  firmware::check_photo_pixels(path, photo.full_size);
-  const cv::Size size = forced.width > 0 ? forced : firmware::working_size(photo.full_size, budget);
-  if (size.width > photo.full_size.width || size.height > photo.full_size.height)
-    throw std::invalid_argument("the photo '" + path + "' is " + std::to_string(photo.full_size.width) + "x" +
-                                std::to_string(photo.full_size.height) + ", smaller than the scene folder's " +
-                                std::to_string(size.width) + "x" + std::to_string(size.height));
-  // Reduced while it is read, a band of rows at a time: the full-size photo
-  // is never held whole.
-  photo.working = size == photo.full_size ? capture::load_photo_linear(path) : capture::load_photo_reduced(path, size);
-  if (photo.working.size() != photo.full_size && size == photo.full_size)
-    throw std::runtime_error("the photo '" + path + "' changed while it was being read");
-  photo.file_bytes = fs::file_size(path);
-  photo.file_time = fs::last_write_time(path);
-  photo.scale = static_cast<double>(size.width) / photo.full_size.width;
+  firmware::WorkingPhoto photo = firmware::load_working_photo(path, budget, forced);
   if (photo.reduced())
-    progress.stage("working at " + std::to_string(size.width) + "x" + std::to_string(size.height) + " (the photo is " +
-                   std::to_string(photo.full_size.width) + "x" + std::to_string(photo.full_size.height) + ")");
+    progress.stage("working at " + std::to_string(photo.working.cols) + "x" + std::to_string(photo.working.rows) +
+                   " (the photo is " + std::to_string(photo.full_size.width) + "x" +
+                   std::to_string(photo.full_size.height) + ")");
   return photo;
-}
-
-// The composite at the photo's own size, a band of rows at a time: the file
-// read again (checked unchanged), each band taken to the response-linear
-// space, the working composite's change carried onto it, and written out.
-// No full-size image is held (a 12 MP photo is 144 MB as float).
-void write_full_size_composite(const std::string& photo_path, const LoadedPhoto& loaded, const std::string& out_path,
-                               const firmware::FullSizeDelivery& delivery, double gamma) {
-  constexpr int kBandRows = 64;
-  const std::string changed = "the photo '" + photo_path + "' changed while it was being composited; nothing was written";
-  if (fs::file_size(photo_path) != loaded.file_bytes || fs::last_write_time(photo_path) != loaded.file_time)
-    throw std::runtime_error(changed);
-  capture::PhotoRowReader in(photo_path);
-  if (in.size() != loaded.full_size) throw std::runtime_error(changed);
-  capture::ImageRowWriter out(out_path, loaded.full_size);
-  for (int y = 0; y < loaded.full_size.height; y += kBandRows) {
-    const int rows = std::min(kBandRows, loaded.full_size.height - y);
-    cv::Mat band = capture::srgb_linear_to_response_linear(in.read(y, rows), gamma);
-    delivery.apply(band, y);
-    out.write(capture::response_linear_to_srgb_linear(band, gamma));
-  }
-  out.finish();
 }
 
 json size_json(const cv::Mat& m) { return json::array({m.cols, m.rows}); }
@@ -231,7 +177,7 @@ int cmd_infer(const InferArgs& a) {
   }
   if (a.photo.empty()) throw std::invalid_argument("infer needs a PHOTO (or --lines FILE --size WxH)");
   if (a.out.empty()) throw std::invalid_argument("infer needs -o SCENE_DIR");
-  const LoadedPhoto photo = load_working_photo(a.photo, working_pixels_of(a.working_size), progress);
+  const firmware::WorkingPhoto photo = load_photo_for_work(a.photo, working_pixels_of(a.working_size), progress);
   inference::SceneModel scene =
       infer_with_progress(photo.working, a.photo, a.camera_height, a.lens, progress, photo.scale);
   inference::save_scene(scene, a.out);
@@ -363,21 +309,21 @@ int cmd_composite(const CompositeArgs& a) {
   placement.yaw_deg = a.yaw;
 
   inference::SceneModel scene;
-  LoadedPhoto loaded;
+  firmware::WorkingPhoto loaded;
   if (!a.scene_dir.empty()) {
     scene = inference::load_scene(a.scene_dir);
     if (scene.depth.empty())
       throw std::invalid_argument("the scene folder '" + a.scene_dir + "' has no depth.exr: make it again with " +
                                   "`propcam infer PHOTO -o " + a.scene_dir + "`");
     // The photo is worked at the size the scene was inferred at.
-    loaded = load_working_photo(a.photo, 0, progress, {scene.width, scene.height});
-    if (!same_view_reduced(loaded.full_size, loaded.working.size()))
+    loaded = load_photo_for_work(a.photo, 0, progress, {scene.width, scene.height});
+    if (!firmware::same_view_reduced(loaded.full_size, loaded.working.size()))
       throw std::invalid_argument("the scene folder '" + a.scene_dir + "' was inferred from a " +
                                   std::to_string(scene.width) + "x" + std::to_string(scene.height) +
                                   " photo; this photo is " + std::to_string(loaded.full_size.width) + "x" +
                                   std::to_string(loaded.full_size.height));
   } else {
-    loaded = load_working_photo(a.photo, working_pixels_of(a.working_size), progress);
+    loaded = load_photo_for_work(a.photo, working_pixels_of(a.working_size), progress);
   }
   const cv::Mat& photo = loaded.working;
   placement.pixel_u *= static_cast<double>(photo.cols) / loaded.full_size.width;
@@ -431,7 +377,7 @@ int cmd_composite(const CompositeArgs& a) {
     // carried up onto the full photo, in the same response-linear space.
     progress.stage("composite at " + std::to_string(output_size.width) + "x" + std::to_string(output_size.height));
     const firmware::FullSizeDelivery delivery(scene_photo, final_image, result.render.coverage, output_size);
-    write_full_size_composite(a.photo, loaded, a.out, delivery, scene.gamma);
+    firmware::write_full_size_composite(loaded, a.out, delivery, scene.gamma);
   } else {
     capture::write_image(a.out, capture::response_linear_to_srgb_linear(final_image, scene.gamma));
   }

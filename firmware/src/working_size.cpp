@@ -1,5 +1,7 @@
 #include "working_size.h"
 
+#include "propcam/capture/image_file.h"
+
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
@@ -82,6 +84,51 @@ cv::Mat reduce_to(const cv::Mat& photo, cv::Size size) {
   cv::Mat out;
   cv::resize(photo, out, size, 0, 0, cv::INTER_AREA);
   return out;
+}
+
+bool same_view_reduced(cv::Size full, cv::Size working) {
+  if (working.width > full.width || working.height > full.height) return false;
+  const double expected_height = static_cast<double>(working.width) * full.height / full.width;
+  return std::abs(expected_height - working.height) <= 1.0;
+}
+
+WorkingPhoto load_working_photo(const std::string& path, long budget, cv::Size forced) {
+  namespace fs = std::filesystem;
+  WorkingPhoto photo;
+  photo.path = path;
+  photo.full_size = capture::photo_file_size(path);
+  check_photo_pixels(path, photo.full_size);
+  const cv::Size size = forced.width > 0 ? forced : working_size(photo.full_size, budget);
+  if (size.width > photo.full_size.width || size.height > photo.full_size.height)
+    throw std::invalid_argument("the photo '" + path + "' is " + std::to_string(photo.full_size.width) + "x" +
+                                std::to_string(photo.full_size.height) + ", smaller than the " +
+                                std::to_string(size.width) + "x" + std::to_string(size.height) + " it is needed at");
+  photo.working = size == photo.full_size ? capture::load_photo_linear(path) : capture::load_photo_reduced(path, size);
+  if (size == photo.full_size && photo.working.size() != size)
+    throw std::runtime_error("the photo '" + path + "' changed while it was being read");
+  photo.file_bytes = fs::file_size(path);
+  photo.file_time = fs::last_write_time(path);
+  photo.scale = static_cast<double>(size.width) / photo.full_size.width;
+  return photo;
+}
+
+void write_full_size_composite(const WorkingPhoto& photo, const std::string& out_path,
+                               const FullSizeDelivery& delivery, double gamma) {
+  namespace fs = std::filesystem;
+  constexpr int kBandRows = 64;
+  const std::string changed = "the photo '" + photo.path + "' changed while it was being composited; nothing was written";
+  if (fs::file_size(photo.path) != photo.file_bytes || fs::last_write_time(photo.path) != photo.file_time)
+    throw std::runtime_error(changed);
+  capture::PhotoRowReader in(photo.path);
+  if (in.size() != photo.full_size) throw std::runtime_error(changed);
+  capture::ImageRowWriter out(out_path, photo.full_size);
+  for (int y = 0; y < photo.full_size.height; y += kBandRows) {
+    const int rows = std::min(kBandRows, photo.full_size.height - y);
+    cv::Mat band = capture::srgb_linear_to_response_linear(in.read(y, rows), gamma);
+    delivery.apply(band, y);
+    out.write(capture::response_linear_to_srgb_linear(band, gamma));
+  }
+  out.finish();
 }
 
 FullSizeDelivery::FullSizeDelivery(const cv::Mat& working_photo, const cv::Mat& working_composite,

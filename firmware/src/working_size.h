@@ -10,6 +10,8 @@
 #pragma once
 
 #include <opencv2/core.hpp>
+#include <cstdint>
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -55,6 +57,35 @@ class FullSizeDelivery {
   cv::Mat untouched_, ratio_, colour_, coverage_;
   std::vector<Taps> xs_, ys_;
 };
+
+// A reduction of `full` to `working` keeps the view: the aspect ratios agree
+// to within a pixel of rounding.
+bool same_view_reduced(cv::Size full, cv::Size working);
+
+// The working copy of a photo file. The full-size pixels are never held
+// whole: the file is reduced while it is read, and the composite reads it
+// again at the end (a 12 MP photo is 144 MB as float).
+struct WorkingPhoto {
+  std::string path;
+  cv::Size full_size;
+  cv::Mat working;     // linear sRGB, reduced (the photo itself when it fits)
+  double scale = 1.0;  // working width / full width
+  std::uintmax_t file_bytes = 0;
+  std::filesystem::file_time_type file_time;
+  bool reduced() const { return working.size() != full_size; }
+};
+
+// Reads `path` reduced to `forced` when given (a scene folder's size), else
+// to fit `budget` pixels. Throws std::invalid_argument for a photo above
+// kMaxPhotoPixels or smaller than `forced`, and what load_photo_linear throws.
+WorkingPhoto load_working_photo(const std::string& path, long budget, cv::Size forced = {});
+
+// The composite at the photo's own size, a band of rows at a time: the file
+// read again (checked unchanged since load_working_photo), each band taken
+// to the response-linear space of `gamma`, the working composite's change
+// carried onto it, and written atomically to `out_path`.
+void write_full_size_composite(const WorkingPhoto& photo, const std::string& out_path,
+                               const FullSizeDelivery& delivery, double gamma);
 
 // The whole full photo at once (tests, small photos).
 void deliver_at_full_size(cv::Mat& full_photo, const cv::Mat& working_photo, const cv::Mat& working_composite,
