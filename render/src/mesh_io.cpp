@@ -10,6 +10,7 @@
 #include <cctype>
 #include <cerrno>
 #include <charconv>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -18,7 +19,6 @@
 #include <map>
 #include <set>
 #include <stdexcept>
-#include <unordered_map>
 #include <utility>
 
 #include <opencv2/imgcodecs.hpp>
@@ -188,24 +188,192 @@ struct ObjCorner {
   int position, uv, normal;  // OBJ indices, -1 when absent
 };
 
-// Key of an output vertex: the OBJ index triple, plus the computed normal when
-// the file has none (its bits, since equal inputs give identical sums).
+// Key of an output vertex: the OBJ position and uv indices, and the OBJ normal index or, with the top bit set, the
+// computed normal's index (computed normals are distinct in bits at each position, so equal bits share a vertex).
 struct VertexKey {
-  std::array<std::uint32_t, 6> words;
+  std::array<std::uint32_t, 3> words;
   bool operator==(const VertexKey&) const = default;
 };
-struct VertexKeyHash {
-  std::size_t operator()(const VertexKey& key) const {
-    std::uint64_t h = 1469598103934665603ull;
-    for (std::uint32_t w : key.words) h = (h ^ w) * 1099511628211ull;
-    return static_cast<std::size_t>(h);
+constexpr std::uint32_t kComputedNormal = 0x80000000u;
+
+// Output vertices by key: open addressing with linear probing, at most half full (one cache miss a lookup,
+// where std::unordered_map chases a bucket and a node). The hash is seeded per process, so no file can be
+// made of keys that collide.
+class VertexTable {
+ public:
+  // The vertex of `key`, or `next` (then stored for it) when it has none yet; and whether it was inserted.
+  std::pair<int, bool> find_or_insert(const VertexKey& key, int next) {
+    if (2 * (used_ + 1) > slots_.size()) grow();
+    for (std::size_t i = hash(key) & (slots_.size() - 1);; i = (i + 1) & (slots_.size() - 1)) {
+      Slot& slot = slots_[i];
+      if (slot.vertex < 0) {
+        slot = {key, next};
+        ++used_;
+        return {next, true};
+      }
+      if (slot.key == key) return {slot.vertex, false};
+    }
   }
+
+ private:
+  struct Slot {
+    VertexKey key{};
+    int vertex = -1;
+  };
+
+  static std::uint64_t seed() {
+    static const std::uint64_t value = static_cast<std::uint64_t>(
+        std::chrono::steady_clock::now().time_since_epoch().count() ^ reinterpret_cast<std::uintptr_t>(&value));
+    return value;
+  }
+  static std::uint64_t hash(const VertexKey& key) {
+    std::uint64_t h = seed();
+    for (const std::uint32_t w : key.words) {  // splitmix64's finaliser after each word
+      h = (h ^ w) + 0x9e3779b97f4a7c15ull;
+      h = (h ^ (h >> 30)) * 0xbf58476d1ce4e5b9ull;
+      h = (h ^ (h >> 27)) * 0x94d049bb133111ebull;
+      h ^= h >> 31;
+    }
+    return h;
+  }
+  void grow() {
+    std::vector<Slot> old = std::exchange(slots_, std::vector<Slot>(std::max<std::size_t>(64, 2 * slots_.size())));
+    used_ = 0;
+    for (const Slot& slot : old)
+      if (slot.vertex >= 0) find_or_insert(slot.key, slot.vertex);
+  }
+
+  std::vector<Slot> slots_;
+  std::size_t used_ = 0;
 };
 
-std::uint32_t float_bits(float f) {
-  std::uint32_t bits;
-  std::memcpy(&bits, &f, sizeof bits);
-  return bits;
+// Smooth normals for corners the file gives none (faces more than 60 degrees apart keep separate normals).
+constexpr float kCreaseCos = 0.5f;
+// A corner's normal is the sum of the face normals (length 2 * area) around its position that lie within the
+// crease angle of its own face, so corners whose faces point the same way (equal direction bits) share one
+// sum, made once: work = directions x faces around the position. Past this many directions at one position
+// (the apex of a fine cone) the directions are binned instead, so that no input costs more than linear time.
+constexpr int kMaxExactCreaseDirections = 64;
+constexpr int kCreaseBinsPerAxis = 8;  // octahedral bins, about 20 degrees wide
+constexpr int kCreaseBins = kCreaseBinsPerAxis * kCreaseBinsPerAxis + 1;  // the last: degenerate faces
+
+int crease_bin(const Vector3f& d) {
+  const float l1 = std::abs(d.x()) + std::abs(d.y()) + std::abs(d.z());
+  if (!(l1 > 0.f) || !std::isfinite(l1)) return kCreaseBins - 1;
+  float u = d.x() / l1, v = d.y() / l1;
+  if (d.z() < 0.f) {  // fold the lower hemisphere over the diagonals
+    const float fu = (1.f - std::abs(v)) * (u < 0.f ? -1.f : 1.f), fv = (1.f - std::abs(u)) * (v < 0.f ? -1.f : 1.f);
+    u = fu;
+    v = fv;
+  }
+  const auto cell = [](float t) {
+    return std::clamp(static_cast<int>((t * 0.5f + 0.5f) * kCreaseBinsPerAxis), 0, kCreaseBinsPerAxis - 1);
+  };
+  return cell(u) * kCreaseBinsPerAxis + cell(v);
+}
+
+struct SmoothNormals {
+  std::vector<int> of_corner;  // per corner (3 * triangle + k): index into `normals`, -1 where not needed
+  std::vector<Vector3f> normals;  // distinct (in bits) at each position, so an index stands for the bits in a key
+};
+
+// `needed` per corner; `face_normal` per triangle (length 2 * area), `face_direction` its unit vector or zero.
+SmoothNormals smooth_normals(const std::vector<std::array<ObjCorner, 3>>& corners, int position_count,
+                             const std::vector<char>& needed, const std::vector<Vector3f>& face_normal,
+                             const std::vector<Vector3f>& face_direction) {
+  const int corner_count = static_cast<int>(3 * corners.size());
+  // The corners around each position, in triangle order, for the positions that need a normal.
+  std::vector<char> position_needed(position_count, 0);
+  for (int c = 0; c < corner_count; ++c)
+    if (needed[c]) position_needed[corners[c / 3][c % 3].position] = 1;
+  std::vector<int> offsets(position_count + 1, 0);
+  for (int c = 0; c < corner_count; ++c) {
+    const int p = corners[c / 3][c % 3].position;
+    if (position_needed[p]) ++offsets[p + 1];
+  }
+  for (int p = 0; p < position_count; ++p) offsets[p + 1] += offsets[p];
+  std::vector<int> around(offsets.back());
+  {
+    std::vector<int> fill(offsets.begin(), offsets.end() - 1);
+    for (int c = 0; c < corner_count; ++c) {
+      const int p = corners[c / 3][c % 3].position;
+      if (position_needed[p]) around[fill[p]++] = c;
+    }
+  }
+
+  SmoothNormals out;
+  out.of_corner.assign(corner_count, -1);
+  const auto same_bits = [](const Vector3f& a, const Vector3f& b) {
+    return std::memcmp(a.data(), b.data(), 3 * sizeof(float)) == 0;
+  };
+  // Index of the normal of a face pointing `direction` at the position whose normals start at `base`, from the
+  // sum of the faces around it within the crease angle.
+  const auto add_normal = [&](int base, const Vector3f& sum, const Vector3f& direction) {
+    const float length = sum.norm();
+    const Vector3f normal =
+        length > 0.f ? Vector3f(sum / length) : direction.isZero() ? Vector3f(Vector3f::UnitY()) : direction;
+    for (int i = base; i < static_cast<int>(out.normals.size()); ++i)
+      if (same_bits(out.normals[i], normal)) return i;
+    out.normals.push_back(normal);
+    return static_cast<int>(out.normals.size()) - 1;
+  };
+  std::vector<int> normal_of_direction;
+  std::vector<Vector3f> directions;
+  std::vector<int> direction_of;
+  std::array<Vector3f, kCreaseBins> bin_normal_sum, bin_direction;
+  std::array<int, kCreaseBins> bin_index;
+  for (int p = 0; p < position_count; ++p) {
+    const int begin = offsets[p], end = offsets[p + 1];
+    if (begin == end) continue;
+    directions.clear();
+    direction_of.clear();
+    for (int k = begin; k < end; ++k) {
+      const Vector3f& d = face_direction[around[k] / 3];
+      int g = 0;
+      while (g < static_cast<int>(directions.size()) && !same_bits(directions[g], d)) ++g;
+      if (g == static_cast<int>(directions.size())) {
+        if (g == kMaxExactCreaseDirections) break;
+        directions.push_back(d);
+      }
+      direction_of.push_back(g);
+    }
+    const int base = static_cast<int>(out.normals.size());
+    if (static_cast<int>(direction_of.size()) == end - begin) {
+      normal_of_direction.clear();
+      for (const Vector3f& d : directions) {
+        Vector3f sum = Vector3f::Zero();
+        for (int k = begin; k < end; ++k) {
+          const int other = around[k] / 3;
+          if (d.isZero() || d.dot(face_direction[other]) >= kCreaseCos) sum += face_normal[other];
+        }
+        normal_of_direction.push_back(add_normal(base, sum, d));
+      }
+      for (int k = begin; k < end; ++k) out.of_corner[around[k]] = normal_of_direction[direction_of[k - begin]];
+      continue;
+    }
+    // Binned: each bin's faces share the normal made from the bins within the crease angle of their mean direction.
+    bin_normal_sum.fill(Vector3f::Zero());
+    bin_direction.fill(Vector3f::Zero());
+    bin_index.fill(-1);
+    for (int k = begin; k < end; ++k) {
+      const int t = around[k] / 3, bin = crease_bin(face_direction[t]);
+      bin_normal_sum[bin] += face_normal[t];
+      if (bin != kCreaseBins - 1) bin_direction[bin] += face_direction[t];
+      bin_index[bin] = 0;  // occupied
+    }
+    for (Vector3f& d : bin_direction) d = d.norm() > 0.f ? Vector3f(d.normalized()) : Vector3f(Vector3f::Zero());
+    for (int bin = 0; bin < kCreaseBins; ++bin) {
+      if (bin_index[bin] < 0) continue;
+      const Vector3f& d = bin_direction[bin];
+      Vector3f sum = Vector3f::Zero();
+      for (int other = 0; other < kCreaseBins; ++other)
+        if (bin_index[other] >= 0 && (d.isZero() || d.dot(bin_direction[other]) >= kCreaseCos))
+          sum += bin_normal_sum[other];
+      bin_index[bin] = add_normal(base, sum, d);
+    }
+    for (int k = begin; k < end; ++k) out.of_corner[around[k]] = bin_index[crease_bin(face_direction[around[k] / 3])];
+  }
+  return out;
 }
 
 // ---------------------------------------------------------------------------
@@ -307,6 +475,7 @@ Mesh load_mesh_file(const std::string& path) {
   std::ifstream in(file, std::ios::binary);
   if (!in) fail(path, std::string("cannot open: ") + std::strerror(errno));
 
+
   tinyobj::attrib_t attrib;
   std::vector<tinyobj::shape_t> shapes;
   std::vector<tinyobj::material_t> obj_materials;
@@ -338,12 +507,18 @@ Mesh load_mesh_file(const std::string& path) {
   // Triangles as OBJ corners (fan-split anything tinyobjloader left as a polygon).
   std::vector<std::array<ObjCorner, 3>> corners;
   std::vector<int> obj_material_of;  // per triangle, -1 = none
+  std::vector<ObjCorner> polygon;
+  std::size_t triangle_total = 0;
+  for (const auto& shape : shapes)
+    for (const unsigned count : shape.mesh.num_face_vertices) triangle_total += count >= 3 ? count - 2 : 0;
+  corners.reserve(triangle_total);
+  obj_material_of.reserve(triangle_total);
   for (const auto& shape : shapes) {
     size_t first = 0;
     for (size_t face = 0; face < shape.mesh.num_face_vertices.size(); ++face) {
       const int count = shape.mesh.num_face_vertices[face];
       const int material = face < shape.mesh.material_ids.size() ? shape.mesh.material_ids[face] : -1;
-      std::vector<ObjCorner> polygon;
+      polygon.clear();
       for (int k = 0; k < count; ++k) {
         const tinyobj::index_t& idx = shape.mesh.indices[first + k];
         if (idx.vertex_index < 0 || idx.vertex_index >= position_count)
@@ -365,12 +540,12 @@ Mesh load_mesh_file(const std::string& path) {
     }
   }
   if (corners.empty()) fail(path, "no triangles (the file has no faces)");
+  shapes = {};  // their memory, before the mesh's is taken
 
-  // Face normals (length = 2 * area) and, per OBJ position, the triangles around it,
-  // for corners that need a computed normal.
+  // Face normals (length = 2 * area) for the corners that need a computed normal.
   const int triangle_count = static_cast<int>(corners.size());
   std::vector<Vector3f> face_normal(triangle_count), face_direction(triangle_count);
-  std::vector<int> around_offsets(position_count + 1, 0), around;
+  std::vector<char> needs_computed(3 * static_cast<std::size_t>(triangle_count));
   bool needs_computed_normals = false;
   for (int t = 0; t < triangle_count; ++t) {
     const auto& c = corners[t];
@@ -378,47 +553,35 @@ Mesh load_mesh_file(const std::string& path) {
     face_normal[t] = (obj_position(c[1].position) - p0).cross(obj_position(c[2].position) - p0);
     const float length = face_normal[t].norm();
     face_direction[t] = length > 0.f ? Vector3f(face_normal[t] / length) : Vector3f::Zero();
-    for (const auto& corner : c) {
-      ++around_offsets[corner.position + 1];
-      needs_computed_normals = needs_computed_normals || file_normal(corner.normal).isZero();
+    for (int k = 0; k < 3; ++k) {
+      needs_computed[3 * t + k] = file_normal(c[k].normal).isZero();
+      needs_computed_normals = needs_computed_normals || needs_computed[3 * t + k];
     }
   }
-  if (needs_computed_normals) {
-    for (int i = 0; i < position_count; ++i) around_offsets[i + 1] += around_offsets[i];
-    around.resize(around_offsets.back());
-    std::vector<int> fill(around_offsets.begin(), around_offsets.end() - 1);
-    for (int t = 0; t < triangle_count; ++t)
-      for (const auto& corner : corners[t]) around[fill[corner.position]++] = t;
-  }
-  const float crease_cos = 0.5f;  // faces more than 60 degrees apart keep separate normals
-  const auto computed_normal = [&](int t, int position) {
-    Vector3f sum = Vector3f::Zero();
-    for (int k = around_offsets[position]; k < around_offsets[position + 1]; ++k) {
-      const int other = around[k];
-      if (face_direction[t].isZero() || face_direction[t].dot(face_direction[other]) >= crease_cos)
-        sum += face_normal[other];
-    }
-    const float length = sum.norm();
-    if (length > 0.f) return Vector3f(sum / length);
-    return face_direction[t].isZero() ? Vector3f(Vector3f::UnitY()) : face_direction[t];
-  };
+  const SmoothNormals computed_normals =
+      needs_computed_normals ? smooth_normals(corners, position_count, needs_computed, face_normal, face_direction)
+                             : SmoothNormals{};
+  face_normal = {};  // their memory, before the mesh's is taken
+  face_direction = {};
 
   Mesh mesh;
   const bool has_uvs = std::any_of(corners.begin(), corners.end(),
                                    [](const auto& c) { return c[0].uv >= 0 || c[1].uv >= 0 || c[2].uv >= 0; });
-  std::unordered_map<VertexKey, int, VertexKeyHash> vertex_of;
+  VertexTable vertex_of;
+  mesh.triangles.reserve(triangle_count);
   for (int t = 0; t < triangle_count; ++t) {
     Eigen::Vector3i triangle;
     for (int k = 0; k < 3; ++k) {
       const ObjCorner& corner = corners[t][k];
-      const Vector3f from_file = file_normal(corner.normal);
-      const bool computed = from_file.isZero();
-      const Vector3f normal = computed ? computed_normal(t, corner.position) : from_file;
+      const bool computed = needs_computed[3 * t + k];
+      const Vector3f normal = computed ? computed_normals.normals[computed_normals.of_corner[3 * t + k]]
+                                       : file_normal(corner.normal);
+      const std::uint32_t normal_code =
+          computed ? kComputedNormal | static_cast<std::uint32_t>(computed_normals.of_corner[3 * t + k])
+                   : static_cast<std::uint32_t>(corner.normal);
       const VertexKey key{{static_cast<std::uint32_t>(corner.position), static_cast<std::uint32_t>(corner.uv),
-                           static_cast<std::uint32_t>(computed ? -1 : corner.normal),
-                           computed ? float_bits(normal.x()) : 0u, computed ? float_bits(normal.y()) : 0u,
-                           computed ? float_bits(normal.z()) : 0u}};
-      auto [it, inserted] = vertex_of.try_emplace(key, static_cast<int>(mesh.positions.size()));
+                           normal_code}};
+      const auto [vertex, inserted] = vertex_of.find_or_insert(key, static_cast<int>(mesh.positions.size()));
       if (inserted) {
         mesh.positions.push_back(obj_position(corner.position));
         mesh.normals.push_back(normal);
@@ -427,7 +590,7 @@ Mesh load_mesh_file(const std::string& path) {
                                                        1.f - attrib.texcoords[2 * corner.uv + 1])  // v up -> v down
                                             : Vector2f::Zero());
       }
-      triangle[k] = it->second;
+      triangle[k] = vertex;
     }
     mesh.triangles.push_back(triangle);
   }

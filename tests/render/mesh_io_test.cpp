@@ -6,8 +6,10 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <numbers>
 #include <set>
 #include <stdexcept>
+#include <string>
 
 #include <opencv2/imgcodecs.hpp>
 
@@ -346,6 +348,57 @@ TEST(MeshIo, RejectsBrokenFilesNamingThem) {
   write_file(ply, "ply\n");
   message = runtime_error_of([&] { load_mesh_file(ply); });
   EXPECT_NE(message.find("unsupported"), std::string::npos) << message;
+}
+
+// A cone's apex (at y = height) among `segments` faces over a unit circle, without normals in the file.
+std::string cone_obj(int segments, float height) {
+  std::string obj = "v 0 " + std::to_string(height) + " 0\n";
+  for (int i = 0; i < segments; ++i) {
+    const double a = 2 * std::numbers::pi * i / segments;
+    obj += "v " + std::to_string(std::cos(a)) + " 0 " + std::to_string(-std::sin(a)) + "\n";
+  }
+  for (int i = 0; i < segments; ++i)
+    obj += "f 1 " + std::to_string(i + 2) + " " + std::to_string((i + 1) % segments + 2) + "\n";
+  return obj;
+}
+
+TEST(MeshIo, ManyFacesSharingThreeVerticesLoad) {
+  // Every corner's smooth normal sums the faces around its position: once per direction, not per face.
+  const fs::path folder = test_folder();
+  constexpr int kFaces = 200000;
+  std::string obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
+  obj.reserve(obj.size() + 8 * kFaces);
+  for (int i = 0; i < kFaces; ++i) obj += i % 2 ? "f 1 2 3\n" : "f 1 3 2\n";  // both windings
+  write_file(folder / "shared.obj", obj);
+  const Mesh mesh = load_mesh_file((folder / "shared.obj").string());
+  ASSERT_EQ(mesh.triangles.size(), static_cast<size_t>(kFaces));
+  EXPECT_EQ(mesh.positions.size(), 6u);  // each position once per winding: the two sides are 180 degrees apart
+  for (const auto& t : mesh.triangles) {
+    const Vector3f face =
+        (mesh.positions[t[1]] - mesh.positions[t[0]]).cross(mesh.positions[t[2]] - mesh.positions[t[0]]).normalized();
+    for (int k = 0; k < 3; ++k) ASSERT_LT((mesh.normals[t[k]] - face).norm(), 1e-6f);
+  }
+}
+
+TEST(MeshIo, AnApexAmongManyFacesGetsTheSmoothNormal) {
+  // Up to 64 face directions at a position are summed exactly, more are binned by direction: a shallow
+  // cone's apex points up either way, and its rim stays smooth.
+  const fs::path folder = test_folder();
+  for (const int segments : {48, 2000}) {
+    SCOPED_TRACE(segments);
+    const fs::path path = folder / ("cone" + std::to_string(segments) + ".obj");
+    write_file(path, cone_obj(segments, 0.2f));
+    const Mesh cone = load_mesh_file(path.string());
+    ASSERT_EQ(cone.triangles.size(), static_cast<size_t>(segments));
+    for (const auto& t : cone.triangles) {
+      ASSERT_LT((cone.normals[t[0]] - Vector3f::UnitY()).norm(), 2e-3f);  // the apex
+      for (int k = 1; k < 3; ++k) {
+        const Vector3f& p = cone.positions[t[k]];
+        const Vector3f slope = Vector3f(0.2f * p.x(), 1.f, 0.2f * p.z()).normalized();  // the rim's true normal
+        ASSERT_LT((cone.normals[t[k]] - slope).norm(), 1e-3f);
+      }
+    }
+  }
 }
 
 TEST(MeshIo, SaveErrorsNameTheFile) {
