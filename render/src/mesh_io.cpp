@@ -19,6 +19,7 @@
 #include <map>
 #include <set>
 #include <stdexcept>
+#include <string_view>
 #include <utility>
 
 #include <opencv2/imgcodecs.hpp>
@@ -83,22 +84,164 @@ cv::Mat linear_rgb_to_bgr8_srgb(const cv::Mat& rgb) {
 // ---------------------------------------------------------------------------
 // Loading
 
+// Lines as tinyobjloader splits them (at \n, \r or \r\n; leading spaces and tabs skipped; a NUL ends a
+// line's text), read in chunks so that no line, however long, is held whole. For each line with text,
+// on_line(keyword, spaced, words): its first word (only the first kKeywordChars characters kept), whether a
+// space or tab follows it, and the number of words after it.
+constexpr std::size_t kKeywordChars = 8;
+
+template <typename OnLine>
+void scan_lines(std::istream& in, OnLine on_line) {
+  std::vector<char> chunk(std::size_t{1} << 16);
+  std::string keyword;
+  bool spaced = false, in_word = false, ended = false;
+  std::uint64_t words = 0;
+  const auto end_line = [&] {
+    if (!keyword.empty()) on_line(std::string_view(keyword), spaced, words);
+    keyword.clear();
+    spaced = in_word = ended = false;
+    words = 0;
+  };
+  while (in.read(chunk.data(), static_cast<std::streamsize>(chunk.size())) || in.gcount() > 0) {
+    const std::size_t count = static_cast<std::size_t>(in.gcount());
+    for (std::size_t i = 0; i < count; ++i) {
+      const char c = chunk[i];
+      if (c == '\n' || c == '\r') {
+        end_line();
+      } else if (ended) {
+      } else if (c == '\0') {
+        ended = true;
+      } else if (c == ' ' || c == '\t') {
+        spaced = spaced || !keyword.empty();
+        in_word = false;
+      } else if (!spaced) {
+        if (keyword.size() < kKeywordChars) keyword += c;
+      } else if (!in_word) {
+        in_word = true;
+        ++words;
+      }
+    }
+  }
+  end_line();
+}
+
+// The records of an OBJ that cost memory, counted before tinyobjloader allocates them.
+struct ObjCensus {
+  std::uint64_t positions = 0, uvs = 0, normals = 0;
+  std::uint64_t triangles = 0;        // after triangulation: corners - 2 per face
+  std::uint64_t largest_polygon = 0;  // corners
+};
+
+ObjCensus census_obj(std::istream& in) {
+  ObjCensus census;
+  scan_lines(in, [&](std::string_view keyword, bool spaced, std::uint64_t words) {
+    if (!spaced) return;
+    if (keyword == "v") {
+      ++census.positions;
+    } else if (keyword == "vt") {
+      ++census.uvs;
+    } else if (keyword == "vn") {
+      ++census.normals;
+    } else if (keyword == "f") {
+      if (words >= 3) census.triangles += words - 2;
+      census.largest_polygon = std::max(census.largest_polygon, words);
+    }
+  });
+  return census;
+}
+
+// tinyobjloader's ear clipping takes time quadratic in a polygon's corners (a 4000-gon takes 0.15 s).
+// Larger polygons are split as a fan from their first corner before it sees them: right for convex
+// polygons, which large ones nearly always are (discs, the caps of cylinders).
+constexpr std::uint64_t kMaxEarClippedCorners = 64;
+
+// An OBJ's text as it reads, but with every face of more than kMaxEarClippedCorners corners written as a fan of
+// triangles; tinyobjloader reads through it, so only one line of the file is held at a time.
+class FanSplittingBuf : public std::streambuf {
+ public:
+  explicit FanSplittingBuf(std::istream& source) : source_(*source.rdbuf()) {}
+
+ protected:
+  int_type underflow() override {
+    if (gptr() == egptr()) {
+      if (!next_line()) return traits_type::eof();
+      setg(out_.data(), out_.data(), out_.data() + out_.size());
+    }
+    return traits_type::to_int_type(*gptr());
+  }
+
+ private:
+  // The next line of the source (split at \n, \r or \r\n) into out_, as it is or as a fan.
+  bool next_line() {
+    line_.clear();
+    out_.clear();
+    int c = source_.sbumpc();
+    if (c == traits_type::eof()) return false;
+    for (; c != traits_type::eof() && c != '\n' && c != '\r'; c = source_.sbumpc()) line_ += static_cast<char>(c);
+    if (c == '\r' && source_.sgetc() == '\n') source_.sbumpc();
+    const std::string_view text(line_.c_str());  // up to a NUL, as tinyobjloader reads it
+    const std::size_t start = text.find_first_not_of(" \t");
+    corners_.clear();
+    if (start != std::string_view::npos && text[start] == 'f' && start + 1 < text.size() &&
+        (text[start + 1] == ' ' || text[start + 1] == '\t')) {
+      for (std::size_t at = text.find_first_not_of(" \t", start + 1); at != std::string_view::npos;
+           at = text.find_first_not_of(" \t", at)) {
+        const std::size_t end = std::min(text.find_first_of(" \t", at), text.size());
+        corners_.push_back(text.substr(at, end - at));
+        at = end;
+      }
+    }
+    if (corners_.size() <= kMaxEarClippedCorners) {
+      out_.append(line_).push_back('\n');
+      return true;
+    }
+    for (std::size_t k = 1; k + 1 < corners_.size(); ++k) {
+      out_.append("f ").append(corners_[0]).append(" ").append(corners_[k]).append(" ");
+      out_.append(corners_[k + 1]).push_back('\n');
+    }
+    return true;
+  }
+
+  std::streambuf& source_;
+  std::string line_, out_;
+  std::vector<std::string_view> corners_;
+};
+
+std::string count_over_limit(std::uint64_t count, const char* what, std::uint64_t limit) {
+  return "too large: " + std::to_string(count) + " " + what + " (the limit is " + std::to_string(limit) + ")";
+}
+
 // Opens .mtl files next to the .obj and remembers which file each material
-// came from, because texture paths are relative to their .mtl.
+// came from, because texture paths are relative to their .mtl. Each file is
+// read once however many `mtllib` lines name it, and the materials of all of
+// them are counted against kMaxMeshMaterials before they are parsed.
 class MtlFileReader : public tinyobj::MaterialReader {
  public:
-  explicit MtlFileReader(fs::path obj_folder) : obj_folder_(std::move(obj_folder)) {}
+  MtlFileReader(std::string obj_path, fs::path obj_folder)
+      : obj_path_(std::move(obj_path)), obj_folder_(std::move(obj_folder)) {}
 
   bool operator()(const std::string& mtl_name, std::vector<tinyobj::material_t>* materials,
                   std::map<std::string, int>* material_map, std::string* warn, std::string* err) override {
     std::string portable = mtl_name;
     std::replace(portable.begin(), portable.end(), '\\', '/');  // files written on Windows
     const fs::path mtl_path = obj_folder_ / portable;
-    std::ifstream in(mtl_path);
+    std::ifstream in(mtl_path, std::ios::binary);
     if (!in) {
       if (warn) *warn += "material file '" + mtl_path.string() + "' not found\n";
       return false;
     }
+    std::error_code ec;
+    const fs::path canonical = fs::weakly_canonical(mtl_path, ec);
+    if (!read_.insert(ec ? mtl_path.lexically_normal() : canonical).second) return true;
+    std::uint64_t count = 0;
+    scan_lines(in, [&](std::string_view keyword, bool spaced, std::uint64_t) {
+      count += spaced && keyword == "newmtl";
+    });
+    if (materials->size() + count > kMaxMeshMaterials)
+      fail(obj_path_, count_over_limit(materials->size() + count, "materials", kMaxMeshMaterials) + " with '" +
+                          mtl_path.string() + "'");
+    in.clear();
+    in.seekg(0);
     tinyobj::LoadMtl(material_map, materials, &in, warn, err);
     source_files_.resize(materials->size(), mtl_path);
     return true;
@@ -109,8 +252,10 @@ class MtlFileReader : public tinyobj::MaterialReader {
   }
 
  private:
+  std::string obj_path_;
   fs::path obj_folder_;
   std::vector<fs::path> source_files_;  // per material index
+  std::set<fs::path> read_;
 };
 
 class TextureCache {
@@ -475,13 +620,26 @@ Mesh load_mesh_file(const std::string& path) {
   std::ifstream in(file, std::ios::binary);
   if (!in) fail(path, std::string("cannot open: ") + std::strerror(errno));
 
+  // The budget, from a first cheap pass over the text.
+  const ObjCensus census = census_obj(in);
+  if (census.triangles > kMaxMeshTriangles)
+    fail(path, count_over_limit(census.triangles, "triangles", kMaxMeshTriangles));
+  for (const auto& [count, what] : {std::pair{census.positions, "vertex positions ('v' lines)"},
+                                    std::pair{census.uvs, "texture coordinates ('vt' lines)"},
+                                    std::pair{census.normals, "normals ('vn' lines)"}})
+    if (count > kMaxMeshVertices) fail(path, count_over_limit(count, what, kMaxMeshVertices));
+  in.clear();
+  in.seekg(0);
+  FanSplittingBuf fan_splitting(in);
+  std::istream fanned(&fan_splitting);
+  std::istream& text = census.largest_polygon > kMaxEarClippedCorners ? fanned : in;
 
   tinyobj::attrib_t attrib;
   std::vector<tinyobj::shape_t> shapes;
   std::vector<tinyobj::material_t> obj_materials;
   std::string warnings, errors;
-  MtlFileReader mtl_reader(file.parent_path());
-  if (!tinyobj::LoadObj(&attrib, &shapes, &obj_materials, &warnings, &errors, &in, &mtl_reader,
+  MtlFileReader mtl_reader(path, file.parent_path());
+  if (!tinyobj::LoadObj(&attrib, &shapes, &obj_materials, &warnings, &errors, &text, &mtl_reader,
                         /*triangulate=*/true, /*default_vcols_fallback=*/false))
     fail(path, "parse error: " + trim(errors));
 
@@ -583,6 +741,9 @@ Mesh load_mesh_file(const std::string& path) {
                            normal_code}};
       const auto [vertex, inserted] = vertex_of.find_or_insert(key, static_cast<int>(mesh.positions.size()));
       if (inserted) {
+        if (mesh.positions.size() >= kMaxMeshVertices)
+          fail(path, "too large: more than " + std::to_string(kMaxMeshVertices) +
+                         " vertices (the limit; a vertex is a distinct position, texture coordinate and normal)");
         mesh.positions.push_back(obj_position(corner.position));
         mesh.normals.push_back(normal);
         if (has_uvs)

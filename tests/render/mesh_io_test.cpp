@@ -401,6 +401,54 @@ TEST(MeshIo, AnApexAmongManyFacesGetsTheSmoothNormal) {
   }
 }
 
+TEST(MeshIo, AHugePolygonIsSplitAsAFan) {
+  // tinyobjloader's ear clipping is quadratic in a polygon's corners; past 64 they are split as a fan.
+  const fs::path folder = test_folder();
+  constexpr int kCorners = 100000;
+  std::string obj, face = "f";
+  for (int i = 0; i < kCorners; ++i) {
+    const double a = 2 * std::numbers::pi * i / kCorners;
+    obj += "v " + std::to_string(std::cos(a)) + " " + std::to_string(std::sin(a)) + " 0\n";
+    face += " " + std::to_string(i + 1);
+  }
+  write_file(folder / "disc.obj", obj + face + "\n");
+  const Mesh disc = load_mesh_file((folder / "disc.obj").string());
+  ASSERT_EQ(disc.triangles.size(), static_cast<size_t>(kCorners - 2));
+  double area = 0;
+  for (const auto& t : disc.triangles)
+    area += 0.5 * (disc.positions[t[1]] - disc.positions[t[0]]).cross(disc.positions[t[2]] - disc.positions[t[0]]).z();
+  EXPECT_NEAR(area, std::numbers::pi, 1e-3);  // counter-clockwise, no overlaps
+}
+
+TEST(MeshIo, AMeshOverTheTriangleBudgetIsRefusedUnparsed) {
+  const fs::path folder = test_folder();
+  const std::string path = (folder / "too_many.obj").string();
+  {
+    std::ofstream out(path, std::ios::binary);
+    out << "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
+    const std::string faces = [] {
+      std::string block;
+      for (int i = 0; i < 4096; ++i) block += "f 1 2 3\n";
+      return block;
+    }();
+    for (std::uint64_t written = 0; written <= kMaxMeshTriangles; written += 4096) out << faces;
+  }
+  const std::string message = runtime_error_of([&] { load_mesh_file(path); });
+  EXPECT_NE(message.find(path), std::string::npos) << message;
+  EXPECT_NE(message.find("triangles"), std::string::npos) << message;
+  EXPECT_NE(message.find(std::to_string(kMaxMeshTriangles + 4096)), std::string::npos) << message;
+  EXPECT_NE(message.find("limit is " + std::to_string(kMaxMeshTriangles)), std::string::npos) << message;
+
+  // Materials count too: a tinyobj material is nearly 2 KB, so a small MTL could otherwise fill memory.
+  std::string mtl;
+  for (std::uint64_t i = 0; i <= kMaxMeshMaterials; ++i) mtl += "newmtl m" + std::to_string(i) + "\nKd 1 1 1\n";
+  write_file(folder / "many.mtl", mtl);
+  write_file(folder / "many.obj", "mtllib many.mtl\nusemtl m0\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  const std::string many = runtime_error_of([&] { load_mesh_file((folder / "many.obj").string()); });
+  EXPECT_NE(many.find("many.obj"), std::string::npos) << many;
+  EXPECT_NE(many.find("materials (the limit is " + std::to_string(kMaxMeshMaterials)), std::string::npos) << many;
+}
+
 TEST(MeshIo, SaveErrorsNameTheFile) {
   const fs::path folder = test_folder();
   const std::string unwritable = (folder / "no_such_folder" / "out.obj").string();
