@@ -1,5 +1,6 @@
 #include "propcam/render/mesh_io.h"
 
+#include <OpenImageIO/imageio.h>
 #include <fcntl.h>
 #include <tiny_obj_loader.h>
 #include <unistd.h>
@@ -23,6 +24,7 @@
 #include <utility>
 
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 namespace propcam::render {
 namespace {
@@ -258,6 +260,14 @@ class MtlFileReader : public tinyobj::MaterialReader {
   std::set<fs::path> read_;
 };
 
+// JPEG's signature, by which OpenCV picks its JPEG decoder: the one that can decode at 1/2, 1/4 or 1/8.
+bool is_jpeg_file(const std::string& file) {
+  std::ifstream in(file, std::ios::binary);
+  unsigned char magic[3] = {};
+  return in.read(reinterpret_cast<char*>(magic), sizeof magic) && magic[0] == 0xFF && magic[1] == 0xD8 &&
+         magic[2] == 0xFF;
+}
+
 class TextureCache {
  public:
   explicit TextureCache(std::string obj_path) : obj_path_(std::move(obj_path)) {}
@@ -274,7 +284,7 @@ class TextureCache {
       if (!fs::is_regular_file(candidate, ec)) continue;
       const std::string key = candidate.lexically_normal().string();
       if (auto it = cache_.find(key); it != cache_.end()) return it->second;
-      const cv::Mat bgr = cv::imread(key, cv::IMREAD_COLOR);
+      const cv::Mat bgr = read_bounded(key, material);
       if (bgr.empty()) fail(obj_path_, "cannot decode texture '" + key + "' of material '" + material + "'");
       auto texture = std::make_shared<const cv::Mat>(bgr8_srgb_to_linear_rgb(bgr));
       cache_.emplace(key, texture);
@@ -285,8 +295,57 @@ class TextureCache {
   }
 
  private:
+  // The image as cv::imread(IMREAD_COLOR) gives it, its longer side reduced to kMaxTextureSide. Its size is
+  // read from the header first, and pixels beyond kMaxTextureDecodePixels for the mesh are refused undecoded.
+  cv::Mat read_bounded(const std::string& file, const std::string& material) {
+    const std::string texture = "texture '" + file + "' of material '" + material + "'";
+    std::uint64_t width = 0, height = 0;
+    {
+      const auto input = OIIO::ImageInput::open(file);
+      if (!input) fail(obj_path_, "cannot read the size of " + texture + ": " + trim(OIIO::geterror()));
+      width = static_cast<std::uint64_t>(std::max(input->spec().width, 0));
+      height = static_cast<std::uint64_t>(std::max(input->spec().height, 0));
+    }
+    if (width == 0 || height == 0) fail(obj_path_, texture + " has no pixels");
+    const auto pixels_at = [&](std::uint64_t scale) {
+      return ((width + scale - 1) / scale) * ((height + scale - 1) / scale);  // libjpeg rounds up
+    };
+    const std::uint64_t budget = kMaxTextureDecodePixels - decoded_pixels_;
+    const std::uint64_t long_side = std::max(width, height);
+    std::uint64_t scale = 1;
+    if (long_side > static_cast<std::uint64_t>(kMaxTextureSide) && is_jpeg_file(file)) {
+      // The largest reduction that keeps the longer side at the limit or above; more only to fit the budget.
+      while (scale < 8 && (long_side + 2 * scale - 1) / (2 * scale) >= static_cast<std::uint64_t>(kMaxTextureSide))
+        scale *= 2;
+      while (scale < 8 && pixels_at(scale) > budget) scale *= 2;
+    }
+    if (pixels_at(scale) > budget)
+      fail(obj_path_, texture + " is too large: " + std::to_string(width) + "x" + std::to_string(height) +
+                          " pixels to decode, and a mesh's textures may decode " +
+                          std::to_string(kMaxTextureDecodePixels) + " in all (" + std::to_string(decoded_pixels_) +
+                          " before it); textures are reduced to " + std::to_string(kMaxTextureSide) +
+                          " on their longer side only once decoded");
+    decoded_pixels_ += pixels_at(scale);
+    const int flags = scale == 8   ? cv::IMREAD_REDUCED_COLOR_8
+                      : scale == 4 ? cv::IMREAD_REDUCED_COLOR_4
+                      : scale == 2 ? cv::IMREAD_REDUCED_COLOR_2
+                                   : cv::IMREAD_COLOR;
+    cv::Mat bgr = cv::imread(file, flags);
+    const int decoded_side = std::max(bgr.cols, bgr.rows);
+    if (decoded_side > kMaxTextureSide) {
+      const double shrink = static_cast<double>(kMaxTextureSide) / decoded_side;
+      const cv::Size size(std::clamp(static_cast<int>(std::lround(bgr.cols * shrink)), 1, kMaxTextureSide),
+                          std::clamp(static_cast<int>(std::lround(bgr.rows * shrink)), 1, kMaxTextureSide));
+      cv::Mat reduced;
+      cv::resize(bgr, reduced, size, 0, 0, cv::INTER_AREA);  // averages sRGB values: 8 bits, not 32, per channel
+      return reduced;
+    }
+    return bgr;
+  }
+
   std::string obj_path_;
   std::map<std::string, std::shared_ptr<const cv::Mat>> cache_;
+  std::uint64_t decoded_pixels_ = 0;
 };
 
 Material convert_material(const tinyobj::material_t& mtl, const fs::path& mtl_folder, TextureCache& textures) {

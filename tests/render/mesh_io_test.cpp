@@ -449,6 +449,40 @@ TEST(MeshIo, AMeshOverTheTriangleBudgetIsRefusedUnparsed) {
   EXPECT_NE(many.find("materials (the limit is " + std::to_string(kMaxMeshMaterials)), std::string::npos) << many;
 }
 
+TEST(MeshIo, TexturesAreReducedToTheSideLimitAndHugeOnesRefusedUndecoded) {
+  const fs::path folder = test_folder();
+  const std::string obj = "mtllib t.mtl\nusemtl t\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n";
+  write_file(folder / "t.obj", obj);
+  write_file(folder / "t.mtl", "newmtl t\nKd 1 1 1\nmap_Kd wide.png\n");
+  // Wider than the limit: reduced, aspect kept, a uniform colour unchanged.
+  const cv::Mat wide(4, 2 * kMaxTextureSide + 2, CV_8UC3, cv::Scalar(10, 128, 250));
+  ASSERT_TRUE(cv::imwrite((folder / "wide.png").string(), wide));
+  const Mesh mesh = load_mesh_file((folder / "t.obj").string());
+  ASSERT_TRUE(mesh.materials.at(0).texture);
+  const cv::Mat& texture = *mesh.materials[0].texture;
+  EXPECT_EQ(texture.cols, kMaxTextureSide);
+  EXPECT_EQ(texture.rows, 2);
+  const cv::Vec3f texel = texture.at<cv::Vec3f>(1, kMaxTextureSide - 1);
+  EXPECT_NEAR(texel[0], srgb_to_linear(250.f / 255.f), 1e-6f);
+  EXPECT_NEAR(texel[1], srgb_to_linear(128.f / 255.f), 1e-6f);
+  EXPECT_NEAR(texel[2], srgb_to_linear(10.f / 255.f), 1e-6f);
+
+  // A 69-byte PNG whose header claims 60000 x 60000 RGBA16: refused before its pixels are allocated.
+  const unsigned char png[] = {
+      0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a, 0x00, 0x00, 0x00, 0x0d, 0x49, 0x48, 0x44, 0x52, 0x00, 0x00,
+      0xea, 0x60, 0x00, 0x00, 0xea, 0x60, 0x10, 0x06, 0x00, 0x00, 0x00, 0xd0, 0x42, 0xa9, 0x01, 0x00, 0x00, 0x00,
+      0x0c, 0x49, 0x44, 0x41, 0x54, 0x78, 0x9c, 0x63, 0x60, 0xa0, 0x0c, 0x00, 0x00, 0x00, 0x40, 0x00, 0x01, 0xb7,
+      0x34, 0x7c, 0xef, 0x00, 0x00, 0x00, 0x00, 0x49, 0x45, 0x4e, 0x44, 0xae, 0x42, 0x60, 0x82,
+  };
+  std::ofstream(folder / "huge.png", std::ios::binary).write(reinterpret_cast<const char*>(png), sizeof png);
+  write_file(folder / "t.mtl", "newmtl t\nKd 1 1 1\nmap_Kd huge.png\n");
+  const std::string message = runtime_error_of([&] { load_mesh_file((folder / "t.obj").string()); });
+  EXPECT_NE(message.find("t.obj"), std::string::npos) << message;
+  EXPECT_NE(message.find("huge.png"), std::string::npos) << message;
+  EXPECT_NE(message.find("60000x60000"), std::string::npos) << message;
+  EXPECT_NE(message.find(std::to_string(kMaxTextureDecodePixels)), std::string::npos) << message;
+}
+
 TEST(MeshIo, SaveErrorsNameTheFile) {
   const fs::path folder = test_folder();
   const std::string unwritable = (folder / "no_such_folder" / "out.obj").string();
