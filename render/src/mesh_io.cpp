@@ -1,5 +1,6 @@
 #include "propcam/render/mesh_io.h"
 
+#include <OpenImageIO/imageio.h>
 #include <fcntl.h>
 #include <tiny_obj_loader.h>
 #include <unistd.h>
@@ -10,6 +11,7 @@
 #include <cctype>
 #include <cerrno>
 #include <charconv>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -18,10 +20,11 @@
 #include <map>
 #include <set>
 #include <stdexcept>
-#include <unordered_map>
+#include <string_view>
 #include <utility>
 
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 namespace propcam::render {
 namespace {
@@ -83,22 +86,164 @@ cv::Mat linear_rgb_to_bgr8_srgb(const cv::Mat& rgb) {
 // ---------------------------------------------------------------------------
 // Loading
 
+// Lines as tinyobjloader splits them (at \n, \r or \r\n; leading spaces and tabs skipped; a NUL ends a
+// line's text), read in chunks so that no line, however long, is held whole. For each line with text,
+// on_line(keyword, spaced, words): its first word (only the first kKeywordChars characters kept), whether a
+// space or tab follows it, and the number of words after it.
+constexpr std::size_t kKeywordChars = 8;
+
+template <typename OnLine>
+void scan_lines(std::istream& in, OnLine on_line) {
+  std::vector<char> chunk(std::size_t{1} << 16);
+  std::string keyword;
+  bool spaced = false, in_word = false, ended = false;
+  std::uint64_t words = 0;
+  const auto end_line = [&] {
+    if (!keyword.empty()) on_line(std::string_view(keyword), spaced, words);
+    keyword.clear();
+    spaced = in_word = ended = false;
+    words = 0;
+  };
+  while (in.read(chunk.data(), static_cast<std::streamsize>(chunk.size())) || in.gcount() > 0) {
+    const std::size_t count = static_cast<std::size_t>(in.gcount());
+    for (std::size_t i = 0; i < count; ++i) {
+      const char c = chunk[i];
+      if (c == '\n' || c == '\r') {
+        end_line();
+      } else if (ended) {
+      } else if (c == '\0') {
+        ended = true;
+      } else if (c == ' ' || c == '\t') {
+        spaced = spaced || !keyword.empty();
+        in_word = false;
+      } else if (!spaced) {
+        if (keyword.size() < kKeywordChars) keyword += c;
+      } else if (!in_word) {
+        in_word = true;
+        ++words;
+      }
+    }
+  }
+  end_line();
+}
+
+// The records of an OBJ that cost memory, counted before tinyobjloader allocates them.
+struct ObjCensus {
+  std::uint64_t positions = 0, uvs = 0, normals = 0;
+  std::uint64_t triangles = 0;        // after triangulation: corners - 2 per face
+  std::uint64_t largest_polygon = 0;  // corners
+};
+
+ObjCensus census_obj(std::istream& in) {
+  ObjCensus census;
+  scan_lines(in, [&](std::string_view keyword, bool spaced, std::uint64_t words) {
+    if (!spaced) return;
+    if (keyword == "v") {
+      ++census.positions;
+    } else if (keyword == "vt") {
+      ++census.uvs;
+    } else if (keyword == "vn") {
+      ++census.normals;
+    } else if (keyword == "f") {
+      if (words >= 3) census.triangles += words - 2;
+      census.largest_polygon = std::max(census.largest_polygon, words);
+    }
+  });
+  return census;
+}
+
+// tinyobjloader's ear clipping takes time quadratic in a polygon's corners (a 4000-gon takes 0.15 s).
+// Larger polygons are split as a fan from their first corner before it sees them: right for convex
+// polygons, which large ones nearly always are (discs, the caps of cylinders).
+constexpr std::uint64_t kMaxEarClippedCorners = 64;
+
+// An OBJ's text as it reads, but with every face of more than kMaxEarClippedCorners corners written as a fan of
+// triangles; tinyobjloader reads through it, so only one line of the file is held at a time.
+class FanSplittingBuf : public std::streambuf {
+ public:
+  explicit FanSplittingBuf(std::istream& source) : source_(*source.rdbuf()) {}
+
+ protected:
+  int_type underflow() override {
+    if (gptr() == egptr()) {
+      if (!next_line()) return traits_type::eof();
+      setg(out_.data(), out_.data(), out_.data() + out_.size());
+    }
+    return traits_type::to_int_type(*gptr());
+  }
+
+ private:
+  // The next line of the source (split at \n, \r or \r\n) into out_, as it is or as a fan.
+  bool next_line() {
+    line_.clear();
+    out_.clear();
+    int c = source_.sbumpc();
+    if (c == traits_type::eof()) return false;
+    for (; c != traits_type::eof() && c != '\n' && c != '\r'; c = source_.sbumpc()) line_ += static_cast<char>(c);
+    if (c == '\r' && source_.sgetc() == '\n') source_.sbumpc();
+    const std::string_view text(line_.c_str());  // up to a NUL, as tinyobjloader reads it
+    const std::size_t start = text.find_first_not_of(" \t");
+    corners_.clear();
+    if (start != std::string_view::npos && text[start] == 'f' && start + 1 < text.size() &&
+        (text[start + 1] == ' ' || text[start + 1] == '\t')) {
+      for (std::size_t at = text.find_first_not_of(" \t", start + 1); at != std::string_view::npos;
+           at = text.find_first_not_of(" \t", at)) {
+        const std::size_t end = std::min(text.find_first_of(" \t", at), text.size());
+        corners_.push_back(text.substr(at, end - at));
+        at = end;
+      }
+    }
+    if (corners_.size() <= kMaxEarClippedCorners) {
+      out_.append(line_).push_back('\n');
+      return true;
+    }
+    for (std::size_t k = 1; k + 1 < corners_.size(); ++k) {
+      out_.append("f ").append(corners_[0]).append(" ").append(corners_[k]).append(" ");
+      out_.append(corners_[k + 1]).push_back('\n');
+    }
+    return true;
+  }
+
+  std::streambuf& source_;
+  std::string line_, out_;
+  std::vector<std::string_view> corners_;
+};
+
+std::string count_over_limit(std::uint64_t count, const char* what, std::uint64_t limit) {
+  return "too large: " + std::to_string(count) + " " + what + " (the limit is " + std::to_string(limit) + ")";
+}
+
 // Opens .mtl files next to the .obj and remembers which file each material
-// came from, because texture paths are relative to their .mtl.
+// came from, because texture paths are relative to their .mtl. Each file is
+// read once however many `mtllib` lines name it, and the materials of all of
+// them are counted against kMaxMeshMaterials before they are parsed.
 class MtlFileReader : public tinyobj::MaterialReader {
  public:
-  explicit MtlFileReader(fs::path obj_folder) : obj_folder_(std::move(obj_folder)) {}
+  MtlFileReader(std::string obj_path, fs::path obj_folder)
+      : obj_path_(std::move(obj_path)), obj_folder_(std::move(obj_folder)) {}
 
   bool operator()(const std::string& mtl_name, std::vector<tinyobj::material_t>* materials,
                   std::map<std::string, int>* material_map, std::string* warn, std::string* err) override {
     std::string portable = mtl_name;
     std::replace(portable.begin(), portable.end(), '\\', '/');  // files written on Windows
     const fs::path mtl_path = obj_folder_ / portable;
-    std::ifstream in(mtl_path);
+    std::ifstream in(mtl_path, std::ios::binary);
     if (!in) {
       if (warn) *warn += "material file '" + mtl_path.string() + "' not found\n";
       return false;
     }
+    std::error_code ec;
+    const fs::path canonical = fs::weakly_canonical(mtl_path, ec);
+    if (!read_.insert(ec ? mtl_path.lexically_normal() : canonical).second) return true;
+    std::uint64_t count = 0;
+    scan_lines(in, [&](std::string_view keyword, bool spaced, std::uint64_t) {
+      count += spaced && keyword == "newmtl";
+    });
+    if (materials->size() + count > kMaxMeshMaterials)
+      fail(obj_path_, count_over_limit(materials->size() + count, "materials", kMaxMeshMaterials) + " with '" +
+                          mtl_path.string() + "'");
+    in.clear();
+    in.seekg(0);
     tinyobj::LoadMtl(material_map, materials, &in, warn, err);
     source_files_.resize(materials->size(), mtl_path);
     return true;
@@ -109,9 +254,19 @@ class MtlFileReader : public tinyobj::MaterialReader {
   }
 
  private:
+  std::string obj_path_;
   fs::path obj_folder_;
   std::vector<fs::path> source_files_;  // per material index
+  std::set<fs::path> read_;
 };
+
+// JPEG's signature, by which OpenCV picks its JPEG decoder: the one that can decode at 1/2, 1/4 or 1/8.
+bool is_jpeg_file(const std::string& file) {
+  std::ifstream in(file, std::ios::binary);
+  unsigned char magic[3] = {};
+  return in.read(reinterpret_cast<char*>(magic), sizeof magic) && magic[0] == 0xFF && magic[1] == 0xD8 &&
+         magic[2] == 0xFF;
+}
 
 class TextureCache {
  public:
@@ -129,7 +284,7 @@ class TextureCache {
       if (!fs::is_regular_file(candidate, ec)) continue;
       const std::string key = candidate.lexically_normal().string();
       if (auto it = cache_.find(key); it != cache_.end()) return it->second;
-      const cv::Mat bgr = cv::imread(key, cv::IMREAD_COLOR);
+      const cv::Mat bgr = read_bounded(key, material);
       if (bgr.empty()) fail(obj_path_, "cannot decode texture '" + key + "' of material '" + material + "'");
       auto texture = std::make_shared<const cv::Mat>(bgr8_srgb_to_linear_rgb(bgr));
       cache_.emplace(key, texture);
@@ -140,8 +295,57 @@ class TextureCache {
   }
 
  private:
+  // The image as cv::imread(IMREAD_COLOR) gives it, its longer side reduced to kMaxTextureSide. Its size is
+  // read from the header first, and pixels beyond kMaxTextureDecodePixels for the mesh are refused undecoded.
+  cv::Mat read_bounded(const std::string& file, const std::string& material) {
+    const std::string texture = "texture '" + file + "' of material '" + material + "'";
+    std::uint64_t width = 0, height = 0;
+    {
+      const auto input = OIIO::ImageInput::open(file);
+      if (!input) fail(obj_path_, "cannot read the size of " + texture + ": " + trim(OIIO::geterror()));
+      width = static_cast<std::uint64_t>(std::max(input->spec().width, 0));
+      height = static_cast<std::uint64_t>(std::max(input->spec().height, 0));
+    }
+    if (width == 0 || height == 0) fail(obj_path_, texture + " has no pixels");
+    const auto pixels_at = [&](std::uint64_t scale) {
+      return ((width + scale - 1) / scale) * ((height + scale - 1) / scale);  // libjpeg rounds up
+    };
+    const std::uint64_t budget = kMaxTextureDecodePixels - decoded_pixels_;
+    const std::uint64_t long_side = std::max(width, height);
+    std::uint64_t scale = 1;
+    if (long_side > static_cast<std::uint64_t>(kMaxTextureSide) && is_jpeg_file(file)) {
+      // The largest reduction that keeps the longer side at the limit or above; more only to fit the budget.
+      while (scale < 8 && (long_side + 2 * scale - 1) / (2 * scale) >= static_cast<std::uint64_t>(kMaxTextureSide))
+        scale *= 2;
+      while (scale < 8 && pixels_at(scale) > budget) scale *= 2;
+    }
+    if (pixels_at(scale) > budget)
+      fail(obj_path_, texture + " is too large: " + std::to_string(width) + "x" + std::to_string(height) +
+                          " pixels to decode, and a mesh's textures may decode " +
+                          std::to_string(kMaxTextureDecodePixels) + " in all (" + std::to_string(decoded_pixels_) +
+                          " before it); textures are reduced to " + std::to_string(kMaxTextureSide) +
+                          " on their longer side only once decoded");
+    decoded_pixels_ += pixels_at(scale);
+    const int flags = scale == 8   ? cv::IMREAD_REDUCED_COLOR_8
+                      : scale == 4 ? cv::IMREAD_REDUCED_COLOR_4
+                      : scale == 2 ? cv::IMREAD_REDUCED_COLOR_2
+                                   : cv::IMREAD_COLOR;
+    cv::Mat bgr = cv::imread(file, flags);
+    const int decoded_side = std::max(bgr.cols, bgr.rows);
+    if (decoded_side > kMaxTextureSide) {
+      const double shrink = static_cast<double>(kMaxTextureSide) / decoded_side;
+      const cv::Size size(std::clamp(static_cast<int>(std::lround(bgr.cols * shrink)), 1, kMaxTextureSide),
+                          std::clamp(static_cast<int>(std::lround(bgr.rows * shrink)), 1, kMaxTextureSide));
+      cv::Mat reduced;
+      cv::resize(bgr, reduced, size, 0, 0, cv::INTER_AREA);  // averages sRGB values: 8 bits, not 32, per channel
+      return reduced;
+    }
+    return bgr;
+  }
+
   std::string obj_path_;
   std::map<std::string, std::shared_ptr<const cv::Mat>> cache_;
+  std::uint64_t decoded_pixels_ = 0;
 };
 
 Material convert_material(const tinyobj::material_t& mtl, const fs::path& mtl_folder, TextureCache& textures) {
@@ -188,24 +392,192 @@ struct ObjCorner {
   int position, uv, normal;  // OBJ indices, -1 when absent
 };
 
-// Key of an output vertex: the OBJ index triple, plus the computed normal when
-// the file has none (its bits, since equal inputs give identical sums).
+// Key of an output vertex: the OBJ position and uv indices, and the OBJ normal index or, with the top bit set, the
+// computed normal's index (computed normals are distinct in bits at each position, so equal bits share a vertex).
 struct VertexKey {
-  std::array<std::uint32_t, 6> words;
+  std::array<std::uint32_t, 3> words;
   bool operator==(const VertexKey&) const = default;
 };
-struct VertexKeyHash {
-  std::size_t operator()(const VertexKey& key) const {
-    std::uint64_t h = 1469598103934665603ull;
-    for (std::uint32_t w : key.words) h = (h ^ w) * 1099511628211ull;
-    return static_cast<std::size_t>(h);
+constexpr std::uint32_t kComputedNormal = 0x80000000u;
+
+// Output vertices by key: open addressing with linear probing, at most half full (one cache miss a lookup,
+// where std::unordered_map chases a bucket and a node). The hash is seeded per process, so no file can be
+// made of keys that collide.
+class VertexTable {
+ public:
+  // The vertex of `key`, or `next` (then stored for it) when it has none yet; and whether it was inserted.
+  std::pair<int, bool> find_or_insert(const VertexKey& key, int next) {
+    if (2 * (used_ + 1) > slots_.size()) grow();
+    for (std::size_t i = hash(key) & (slots_.size() - 1);; i = (i + 1) & (slots_.size() - 1)) {
+      Slot& slot = slots_[i];
+      if (slot.vertex < 0) {
+        slot = {key, next};
+        ++used_;
+        return {next, true};
+      }
+      if (slot.key == key) return {slot.vertex, false};
+    }
   }
+
+ private:
+  struct Slot {
+    VertexKey key{};
+    int vertex = -1;
+  };
+
+  static std::uint64_t seed() {
+    static const std::uint64_t value = static_cast<std::uint64_t>(
+        std::chrono::steady_clock::now().time_since_epoch().count() ^ reinterpret_cast<std::uintptr_t>(&value));
+    return value;
+  }
+  static std::uint64_t hash(const VertexKey& key) {
+    std::uint64_t h = seed();
+    for (const std::uint32_t w : key.words) {  // splitmix64's finaliser after each word
+      h = (h ^ w) + 0x9e3779b97f4a7c15ull;
+      h = (h ^ (h >> 30)) * 0xbf58476d1ce4e5b9ull;
+      h = (h ^ (h >> 27)) * 0x94d049bb133111ebull;
+      h ^= h >> 31;
+    }
+    return h;
+  }
+  void grow() {
+    std::vector<Slot> old = std::exchange(slots_, std::vector<Slot>(std::max<std::size_t>(64, 2 * slots_.size())));
+    used_ = 0;
+    for (const Slot& slot : old)
+      if (slot.vertex >= 0) find_or_insert(slot.key, slot.vertex);
+  }
+
+  std::vector<Slot> slots_;
+  std::size_t used_ = 0;
 };
 
-std::uint32_t float_bits(float f) {
-  std::uint32_t bits;
-  std::memcpy(&bits, &f, sizeof bits);
-  return bits;
+// Smooth normals for corners the file gives none (faces more than 60 degrees apart keep separate normals).
+constexpr float kCreaseCos = 0.5f;
+// A corner's normal is the sum of the face normals (length 2 * area) around its position that lie within the
+// crease angle of its own face, so corners whose faces point the same way (equal direction bits) share one
+// sum, made once: work = directions x faces around the position. Past this many directions at one position
+// (the apex of a fine cone) the directions are binned instead, so that no input costs more than linear time.
+constexpr int kMaxExactCreaseDirections = 64;
+constexpr int kCreaseBinsPerAxis = 8;  // octahedral bins, about 20 degrees wide
+constexpr int kCreaseBins = kCreaseBinsPerAxis * kCreaseBinsPerAxis + 1;  // the last: degenerate faces
+
+int crease_bin(const Vector3f& d) {
+  const float l1 = std::abs(d.x()) + std::abs(d.y()) + std::abs(d.z());
+  if (!(l1 > 0.f) || !std::isfinite(l1)) return kCreaseBins - 1;
+  float u = d.x() / l1, v = d.y() / l1;
+  if (d.z() < 0.f) {  // fold the lower hemisphere over the diagonals
+    const float fu = (1.f - std::abs(v)) * (u < 0.f ? -1.f : 1.f), fv = (1.f - std::abs(u)) * (v < 0.f ? -1.f : 1.f);
+    u = fu;
+    v = fv;
+  }
+  const auto cell = [](float t) {
+    return std::clamp(static_cast<int>((t * 0.5f + 0.5f) * kCreaseBinsPerAxis), 0, kCreaseBinsPerAxis - 1);
+  };
+  return cell(u) * kCreaseBinsPerAxis + cell(v);
+}
+
+struct SmoothNormals {
+  std::vector<int> of_corner;  // per corner (3 * triangle + k): index into `normals`, -1 where not needed
+  std::vector<Vector3f> normals;  // distinct (in bits) at each position, so an index stands for the bits in a key
+};
+
+// `needed` per corner; `face_normal` per triangle (length 2 * area), `face_direction` its unit vector or zero.
+SmoothNormals smooth_normals(const std::vector<std::array<ObjCorner, 3>>& corners, int position_count,
+                             const std::vector<char>& needed, const std::vector<Vector3f>& face_normal,
+                             const std::vector<Vector3f>& face_direction) {
+  const int corner_count = static_cast<int>(3 * corners.size());
+  // The corners around each position, in triangle order, for the positions that need a normal.
+  std::vector<char> position_needed(position_count, 0);
+  for (int c = 0; c < corner_count; ++c)
+    if (needed[c]) position_needed[corners[c / 3][c % 3].position] = 1;
+  std::vector<int> offsets(position_count + 1, 0);
+  for (int c = 0; c < corner_count; ++c) {
+    const int p = corners[c / 3][c % 3].position;
+    if (position_needed[p]) ++offsets[p + 1];
+  }
+  for (int p = 0; p < position_count; ++p) offsets[p + 1] += offsets[p];
+  std::vector<int> around(offsets.back());
+  {
+    std::vector<int> fill(offsets.begin(), offsets.end() - 1);
+    for (int c = 0; c < corner_count; ++c) {
+      const int p = corners[c / 3][c % 3].position;
+      if (position_needed[p]) around[fill[p]++] = c;
+    }
+  }
+
+  SmoothNormals out;
+  out.of_corner.assign(corner_count, -1);
+  const auto same_bits = [](const Vector3f& a, const Vector3f& b) {
+    return std::memcmp(a.data(), b.data(), 3 * sizeof(float)) == 0;
+  };
+  // Index of the normal of a face pointing `direction` at the position whose normals start at `base`, from the
+  // sum of the faces around it within the crease angle.
+  const auto add_normal = [&](int base, const Vector3f& sum, const Vector3f& direction) {
+    const float length = sum.norm();
+    const Vector3f normal =
+        length > 0.f ? Vector3f(sum / length) : direction.isZero() ? Vector3f(Vector3f::UnitY()) : direction;
+    for (int i = base; i < static_cast<int>(out.normals.size()); ++i)
+      if (same_bits(out.normals[i], normal)) return i;
+    out.normals.push_back(normal);
+    return static_cast<int>(out.normals.size()) - 1;
+  };
+  std::vector<int> normal_of_direction;
+  std::vector<Vector3f> directions;
+  std::vector<int> direction_of;
+  std::array<Vector3f, kCreaseBins> bin_normal_sum, bin_direction;
+  std::array<int, kCreaseBins> bin_index;
+  for (int p = 0; p < position_count; ++p) {
+    const int begin = offsets[p], end = offsets[p + 1];
+    if (begin == end) continue;
+    directions.clear();
+    direction_of.clear();
+    for (int k = begin; k < end; ++k) {
+      const Vector3f& d = face_direction[around[k] / 3];
+      int g = 0;
+      while (g < static_cast<int>(directions.size()) && !same_bits(directions[g], d)) ++g;
+      if (g == static_cast<int>(directions.size())) {
+        if (g == kMaxExactCreaseDirections) break;
+        directions.push_back(d);
+      }
+      direction_of.push_back(g);
+    }
+    const int base = static_cast<int>(out.normals.size());
+    if (static_cast<int>(direction_of.size()) == end - begin) {
+      normal_of_direction.clear();
+      for (const Vector3f& d : directions) {
+        Vector3f sum = Vector3f::Zero();
+        for (int k = begin; k < end; ++k) {
+          const int other = around[k] / 3;
+          if (d.isZero() || d.dot(face_direction[other]) >= kCreaseCos) sum += face_normal[other];
+        }
+        normal_of_direction.push_back(add_normal(base, sum, d));
+      }
+      for (int k = begin; k < end; ++k) out.of_corner[around[k]] = normal_of_direction[direction_of[k - begin]];
+      continue;
+    }
+    // Binned: each bin's faces share the normal made from the bins within the crease angle of their mean direction.
+    bin_normal_sum.fill(Vector3f::Zero());
+    bin_direction.fill(Vector3f::Zero());
+    bin_index.fill(-1);
+    for (int k = begin; k < end; ++k) {
+      const int t = around[k] / 3, bin = crease_bin(face_direction[t]);
+      bin_normal_sum[bin] += face_normal[t];
+      if (bin != kCreaseBins - 1) bin_direction[bin] += face_direction[t];
+      bin_index[bin] = 0;  // occupied
+    }
+    for (Vector3f& d : bin_direction) d = d.norm() > 0.f ? Vector3f(d.normalized()) : Vector3f(Vector3f::Zero());
+    for (int bin = 0; bin < kCreaseBins; ++bin) {
+      if (bin_index[bin] < 0) continue;
+      const Vector3f& d = bin_direction[bin];
+      Vector3f sum = Vector3f::Zero();
+      for (int other = 0; other < kCreaseBins; ++other)
+        if (bin_index[other] >= 0 && (d.isZero() || d.dot(bin_direction[other]) >= kCreaseCos))
+          sum += bin_normal_sum[other];
+      bin_index[bin] = add_normal(base, sum, d);
+    }
+    for (int k = begin; k < end; ++k) out.of_corner[around[k]] = bin_index[crease_bin(face_direction[around[k] / 3])];
+  }
+  return out;
 }
 
 // ---------------------------------------------------------------------------
@@ -307,12 +679,26 @@ Mesh load_mesh_file(const std::string& path) {
   std::ifstream in(file, std::ios::binary);
   if (!in) fail(path, std::string("cannot open: ") + std::strerror(errno));
 
+  // The budget, from a first cheap pass over the text.
+  const ObjCensus census = census_obj(in);
+  if (census.triangles > kMaxMeshTriangles)
+    fail(path, count_over_limit(census.triangles, "triangles", kMaxMeshTriangles));
+  for (const auto& [count, what] : {std::pair{census.positions, "vertex positions ('v' lines)"},
+                                    std::pair{census.uvs, "texture coordinates ('vt' lines)"},
+                                    std::pair{census.normals, "normals ('vn' lines)"}})
+    if (count > kMaxMeshVertices) fail(path, count_over_limit(count, what, kMaxMeshVertices));
+  in.clear();
+  in.seekg(0);
+  FanSplittingBuf fan_splitting(in);
+  std::istream fanned(&fan_splitting);
+  std::istream& text = census.largest_polygon > kMaxEarClippedCorners ? fanned : in;
+
   tinyobj::attrib_t attrib;
   std::vector<tinyobj::shape_t> shapes;
   std::vector<tinyobj::material_t> obj_materials;
   std::string warnings, errors;
-  MtlFileReader mtl_reader(file.parent_path());
-  if (!tinyobj::LoadObj(&attrib, &shapes, &obj_materials, &warnings, &errors, &in, &mtl_reader,
+  MtlFileReader mtl_reader(path, file.parent_path());
+  if (!tinyobj::LoadObj(&attrib, &shapes, &obj_materials, &warnings, &errors, &text, &mtl_reader,
                         /*triangulate=*/true, /*default_vcols_fallback=*/false))
     fail(path, "parse error: " + trim(errors));
 
@@ -338,12 +724,18 @@ Mesh load_mesh_file(const std::string& path) {
   // Triangles as OBJ corners (fan-split anything tinyobjloader left as a polygon).
   std::vector<std::array<ObjCorner, 3>> corners;
   std::vector<int> obj_material_of;  // per triangle, -1 = none
+  std::vector<ObjCorner> polygon;
+  std::size_t triangle_total = 0;
+  for (const auto& shape : shapes)
+    for (const unsigned count : shape.mesh.num_face_vertices) triangle_total += count >= 3 ? count - 2 : 0;
+  corners.reserve(triangle_total);
+  obj_material_of.reserve(triangle_total);
   for (const auto& shape : shapes) {
     size_t first = 0;
     for (size_t face = 0; face < shape.mesh.num_face_vertices.size(); ++face) {
       const int count = shape.mesh.num_face_vertices[face];
       const int material = face < shape.mesh.material_ids.size() ? shape.mesh.material_ids[face] : -1;
-      std::vector<ObjCorner> polygon;
+      polygon.clear();
       for (int k = 0; k < count; ++k) {
         const tinyobj::index_t& idx = shape.mesh.indices[first + k];
         if (idx.vertex_index < 0 || idx.vertex_index >= position_count)
@@ -365,12 +757,12 @@ Mesh load_mesh_file(const std::string& path) {
     }
   }
   if (corners.empty()) fail(path, "no triangles (the file has no faces)");
+  shapes = {};  // their memory, before the mesh's is taken
 
-  // Face normals (length = 2 * area) and, per OBJ position, the triangles around it,
-  // for corners that need a computed normal.
+  // Face normals (length = 2 * area) for the corners that need a computed normal.
   const int triangle_count = static_cast<int>(corners.size());
   std::vector<Vector3f> face_normal(triangle_count), face_direction(triangle_count);
-  std::vector<int> around_offsets(position_count + 1, 0), around;
+  std::vector<char> needs_computed(3 * static_cast<std::size_t>(triangle_count));
   bool needs_computed_normals = false;
   for (int t = 0; t < triangle_count; ++t) {
     const auto& c = corners[t];
@@ -378,48 +770,39 @@ Mesh load_mesh_file(const std::string& path) {
     face_normal[t] = (obj_position(c[1].position) - p0).cross(obj_position(c[2].position) - p0);
     const float length = face_normal[t].norm();
     face_direction[t] = length > 0.f ? Vector3f(face_normal[t] / length) : Vector3f::Zero();
-    for (const auto& corner : c) {
-      ++around_offsets[corner.position + 1];
-      needs_computed_normals = needs_computed_normals || file_normal(corner.normal).isZero();
+    for (int k = 0; k < 3; ++k) {
+      needs_computed[3 * t + k] = file_normal(c[k].normal).isZero();
+      needs_computed_normals = needs_computed_normals || needs_computed[3 * t + k];
     }
   }
-  if (needs_computed_normals) {
-    for (int i = 0; i < position_count; ++i) around_offsets[i + 1] += around_offsets[i];
-    around.resize(around_offsets.back());
-    std::vector<int> fill(around_offsets.begin(), around_offsets.end() - 1);
-    for (int t = 0; t < triangle_count; ++t)
-      for (const auto& corner : corners[t]) around[fill[corner.position]++] = t;
-  }
-  const float crease_cos = 0.5f;  // faces more than 60 degrees apart keep separate normals
-  const auto computed_normal = [&](int t, int position) {
-    Vector3f sum = Vector3f::Zero();
-    for (int k = around_offsets[position]; k < around_offsets[position + 1]; ++k) {
-      const int other = around[k];
-      if (face_direction[t].isZero() || face_direction[t].dot(face_direction[other]) >= crease_cos)
-        sum += face_normal[other];
-    }
-    const float length = sum.norm();
-    if (length > 0.f) return Vector3f(sum / length);
-    return face_direction[t].isZero() ? Vector3f(Vector3f::UnitY()) : face_direction[t];
-  };
+  const SmoothNormals computed_normals =
+      needs_computed_normals ? smooth_normals(corners, position_count, needs_computed, face_normal, face_direction)
+                             : SmoothNormals{};
+  face_normal = {};  // their memory, before the mesh's is taken
+  face_direction = {};
 
   Mesh mesh;
   const bool has_uvs = std::any_of(corners.begin(), corners.end(),
                                    [](const auto& c) { return c[0].uv >= 0 || c[1].uv >= 0 || c[2].uv >= 0; });
-  std::unordered_map<VertexKey, int, VertexKeyHash> vertex_of;
+  VertexTable vertex_of;
+  mesh.triangles.reserve(triangle_count);
   for (int t = 0; t < triangle_count; ++t) {
     Eigen::Vector3i triangle;
     for (int k = 0; k < 3; ++k) {
       const ObjCorner& corner = corners[t][k];
-      const Vector3f from_file = file_normal(corner.normal);
-      const bool computed = from_file.isZero();
-      const Vector3f normal = computed ? computed_normal(t, corner.position) : from_file;
+      const bool computed = needs_computed[3 * t + k];
+      const Vector3f normal = computed ? computed_normals.normals[computed_normals.of_corner[3 * t + k]]
+                                       : file_normal(corner.normal);
+      const std::uint32_t normal_code =
+          computed ? kComputedNormal | static_cast<std::uint32_t>(computed_normals.of_corner[3 * t + k])
+                   : static_cast<std::uint32_t>(corner.normal);
       const VertexKey key{{static_cast<std::uint32_t>(corner.position), static_cast<std::uint32_t>(corner.uv),
-                           static_cast<std::uint32_t>(computed ? -1 : corner.normal),
-                           computed ? float_bits(normal.x()) : 0u, computed ? float_bits(normal.y()) : 0u,
-                           computed ? float_bits(normal.z()) : 0u}};
-      auto [it, inserted] = vertex_of.try_emplace(key, static_cast<int>(mesh.positions.size()));
+                           normal_code}};
+      const auto [vertex, inserted] = vertex_of.find_or_insert(key, static_cast<int>(mesh.positions.size()));
       if (inserted) {
+        if (mesh.positions.size() >= kMaxMeshVertices)
+          fail(path, "too large: more than " + std::to_string(kMaxMeshVertices) +
+                         " vertices (the limit; a vertex is a distinct position, texture coordinate and normal)");
         mesh.positions.push_back(obj_position(corner.position));
         mesh.normals.push_back(normal);
         if (has_uvs)
@@ -427,7 +810,7 @@ Mesh load_mesh_file(const std::string& path) {
                                                        1.f - attrib.texcoords[2 * corner.uv + 1])  // v up -> v down
                                             : Vector2f::Zero());
       }
-      triangle[k] = it->second;
+      triangle[k] = vertex;
     }
     mesh.triangles.push_back(triangle);
   }

@@ -6,8 +6,10 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <numbers>
 #include <set>
 #include <stdexcept>
+#include <string>
 
 #include <opencv2/imgcodecs.hpp>
 
@@ -346,6 +348,139 @@ TEST(MeshIo, RejectsBrokenFilesNamingThem) {
   write_file(ply, "ply\n");
   message = runtime_error_of([&] { load_mesh_file(ply); });
   EXPECT_NE(message.find("unsupported"), std::string::npos) << message;
+}
+
+// A cone's apex (at y = height) among `segments` faces over a unit circle, without normals in the file.
+std::string cone_obj(int segments, float height) {
+  std::string obj = "v 0 " + std::to_string(height) + " 0\n";
+  for (int i = 0; i < segments; ++i) {
+    const double a = 2 * std::numbers::pi * i / segments;
+    obj += "v " + std::to_string(std::cos(a)) + " 0 " + std::to_string(-std::sin(a)) + "\n";
+  }
+  for (int i = 0; i < segments; ++i)
+    obj += "f 1 " + std::to_string(i + 2) + " " + std::to_string((i + 1) % segments + 2) + "\n";
+  return obj;
+}
+
+TEST(MeshIo, ManyFacesSharingThreeVerticesLoad) {
+  // Every corner's smooth normal sums the faces around its position: once per direction, not per face.
+  const fs::path folder = test_folder();
+  constexpr int kFaces = 200000;
+  std::string obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
+  obj.reserve(obj.size() + 8 * kFaces);
+  for (int i = 0; i < kFaces; ++i) obj += i % 2 ? "f 1 2 3\n" : "f 1 3 2\n";  // both windings
+  write_file(folder / "shared.obj", obj);
+  const Mesh mesh = load_mesh_file((folder / "shared.obj").string());
+  ASSERT_EQ(mesh.triangles.size(), static_cast<size_t>(kFaces));
+  EXPECT_EQ(mesh.positions.size(), 6u);  // each position once per winding: the two sides are 180 degrees apart
+  for (const auto& t : mesh.triangles) {
+    const Vector3f face =
+        (mesh.positions[t[1]] - mesh.positions[t[0]]).cross(mesh.positions[t[2]] - mesh.positions[t[0]]).normalized();
+    for (int k = 0; k < 3; ++k) ASSERT_LT((mesh.normals[t[k]] - face).norm(), 1e-6f);
+  }
+}
+
+TEST(MeshIo, AnApexAmongManyFacesGetsTheSmoothNormal) {
+  // Up to 64 face directions at a position are summed exactly, more are binned by direction: a shallow
+  // cone's apex points up either way, and its rim stays smooth.
+  const fs::path folder = test_folder();
+  for (const int segments : {48, 2000}) {
+    SCOPED_TRACE(segments);
+    const fs::path path = folder / ("cone" + std::to_string(segments) + ".obj");
+    write_file(path, cone_obj(segments, 0.2f));
+    const Mesh cone = load_mesh_file(path.string());
+    ASSERT_EQ(cone.triangles.size(), static_cast<size_t>(segments));
+    for (const auto& t : cone.triangles) {
+      ASSERT_LT((cone.normals[t[0]] - Vector3f::UnitY()).norm(), 2e-3f);  // the apex
+      for (int k = 1; k < 3; ++k) {
+        const Vector3f& p = cone.positions[t[k]];
+        const Vector3f slope = Vector3f(0.2f * p.x(), 1.f, 0.2f * p.z()).normalized();  // the rim's true normal
+        ASSERT_LT((cone.normals[t[k]] - slope).norm(), 1e-3f);
+      }
+    }
+  }
+}
+
+TEST(MeshIo, AHugePolygonIsSplitAsAFan) {
+  // tinyobjloader's ear clipping is quadratic in a polygon's corners; past 64 they are split as a fan.
+  const fs::path folder = test_folder();
+  constexpr int kCorners = 100000;
+  std::string obj, face = "f";
+  for (int i = 0; i < kCorners; ++i) {
+    const double a = 2 * std::numbers::pi * i / kCorners;
+    obj += "v " + std::to_string(std::cos(a)) + " " + std::to_string(std::sin(a)) + " 0\n";
+    face += " " + std::to_string(i + 1);
+  }
+  write_file(folder / "disc.obj", obj + face + "\n");
+  const Mesh disc = load_mesh_file((folder / "disc.obj").string());
+  ASSERT_EQ(disc.triangles.size(), static_cast<size_t>(kCorners - 2));
+  double area = 0;
+  for (const auto& t : disc.triangles)
+    area += 0.5 * (disc.positions[t[1]] - disc.positions[t[0]]).cross(disc.positions[t[2]] - disc.positions[t[0]]).z();
+  EXPECT_NEAR(area, std::numbers::pi, 1e-3);  // counter-clockwise, no overlaps
+}
+
+TEST(MeshIo, AMeshOverTheTriangleBudgetIsRefusedUnparsed) {
+  const fs::path folder = test_folder();
+  const std::string path = (folder / "too_many.obj").string();
+  {
+    std::ofstream out(path, std::ios::binary);
+    out << "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
+    const std::string faces = [] {
+      std::string block;
+      for (int i = 0; i < 4096; ++i) block += "f 1 2 3\n";
+      return block;
+    }();
+    for (std::uint64_t written = 0; written <= kMaxMeshTriangles; written += 4096) out << faces;
+  }
+  const std::string message = runtime_error_of([&] { load_mesh_file(path); });
+  EXPECT_NE(message.find(path), std::string::npos) << message;
+  EXPECT_NE(message.find("triangles"), std::string::npos) << message;
+  EXPECT_NE(message.find(std::to_string(kMaxMeshTriangles + 4096)), std::string::npos) << message;
+  EXPECT_NE(message.find("limit is " + std::to_string(kMaxMeshTriangles)), std::string::npos) << message;
+
+  // Materials count too: a tinyobj material is nearly 2 KB, so a small MTL could otherwise fill memory.
+  std::string mtl;
+  for (std::uint64_t i = 0; i <= kMaxMeshMaterials; ++i) mtl += "newmtl m" + std::to_string(i) + "\nKd 1 1 1\n";
+  write_file(folder / "many.mtl", mtl);
+  write_file(folder / "many.obj", "mtllib many.mtl\nusemtl m0\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  const std::string many = runtime_error_of([&] { load_mesh_file((folder / "many.obj").string()); });
+  EXPECT_NE(many.find("many.obj"), std::string::npos) << many;
+  EXPECT_NE(many.find("materials (the limit is " + std::to_string(kMaxMeshMaterials)), std::string::npos) << many;
+}
+
+TEST(MeshIo, TexturesAreReducedToTheSideLimitAndHugeOnesRefusedUndecoded) {
+  const fs::path folder = test_folder();
+  const std::string obj = "mtllib t.mtl\nusemtl t\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n";
+  write_file(folder / "t.obj", obj);
+  write_file(folder / "t.mtl", "newmtl t\nKd 1 1 1\nmap_Kd wide.png\n");
+  // Wider than the limit: reduced, aspect kept, a uniform colour unchanged.
+  const cv::Mat wide(4, 2 * kMaxTextureSide + 2, CV_8UC3, cv::Scalar(10, 128, 250));
+  ASSERT_TRUE(cv::imwrite((folder / "wide.png").string(), wide));
+  const Mesh mesh = load_mesh_file((folder / "t.obj").string());
+  ASSERT_TRUE(mesh.materials.at(0).texture);
+  const cv::Mat& texture = *mesh.materials[0].texture;
+  EXPECT_EQ(texture.cols, kMaxTextureSide);
+  EXPECT_EQ(texture.rows, 2);
+  const cv::Vec3f texel = texture.at<cv::Vec3f>(1, kMaxTextureSide - 1);
+  EXPECT_NEAR(texel[0], srgb_to_linear(250.f / 255.f), 1e-6f);
+  EXPECT_NEAR(texel[1], srgb_to_linear(128.f / 255.f), 1e-6f);
+  EXPECT_NEAR(texel[2], srgb_to_linear(10.f / 255.f), 1e-6f);
+
+  // A 69-byte PNG whose header claims 60000 x 60000 RGBA16: refused before its pixels are allocated.
+  const unsigned char png[] = {
+      0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a, 0x00, 0x00, 0x00, 0x0d, 0x49, 0x48, 0x44, 0x52, 0x00, 0x00,
+      0xea, 0x60, 0x00, 0x00, 0xea, 0x60, 0x10, 0x06, 0x00, 0x00, 0x00, 0xd0, 0x42, 0xa9, 0x01, 0x00, 0x00, 0x00,
+      0x0c, 0x49, 0x44, 0x41, 0x54, 0x78, 0x9c, 0x63, 0x60, 0xa0, 0x0c, 0x00, 0x00, 0x00, 0x40, 0x00, 0x01, 0xb7,
+      0x34, 0x7c, 0xef, 0x00, 0x00, 0x00, 0x00, 0x49, 0x45, 0x4e, 0x44, 0xae, 0x42, 0x60, 0x82,
+  };
+  std::ofstream(folder / "huge.png", std::ios::binary).write(reinterpret_cast<const char*>(png), sizeof png);
+  write_file(folder / "t.mtl", "newmtl t\nKd 1 1 1\nmap_Kd huge.png\n");
+  const std::string message = runtime_error_of([&] { load_mesh_file((folder / "t.obj").string()); });
+  EXPECT_NE(message.find("t.obj"), std::string::npos) << message;
+  EXPECT_NE(message.find("huge.png"), std::string::npos) << message;
+  EXPECT_NE(message.find("60000x60000"), std::string::npos) << message;
+  EXPECT_NE(message.find(std::to_string(kMaxTextureDecodePixels)), std::string::npos) << message;
 }
 
 TEST(MeshIo, SaveErrorsNameTheFile) {

@@ -15,19 +15,39 @@
 // the OBJ's v-up texture coordinates are flipped on load and on save.
 #pragma once
 
+#include <cstdint>
 #include <string>
 
 #include "propcam/render/mesh.h"
 
 namespace propcam::render {
 
+// Budgets of load_mesh_file. Props come from USB sticks, so any file must load in bounded time and memory: a file
+// over a count is refused before it is parsed (a texture before it is decoded), the message naming the file, the
+// count and the limit. A triangle costs the Mesh 16 bytes and a vertex 32: at both limits it holds 160 MiB.
+inline constexpr std::uint64_t kMaxMeshTriangles = std::uint64_t{1} << 21;  // 2097152, after triangulation
+// Each of the file's v, vt and vn lines, and the mesh's vertices (distinct position, uv and normal triples).
+inline constexpr std::uint64_t kMaxMeshVertices = std::uint64_t{1} << 22;  // 4194304
+inline constexpr std::uint64_t kMaxMeshMaterials = 4096;                   // newmtl entries over all its .mtl files
+// A texture whose longer side exceeds this is reduced on read (aspect kept, area-averaged): 4096 x 4096 as float
+// RGB is 192 MiB.
+inline constexpr int kMaxTextureSide = 4096;
+// Pixels decoded for one mesh's textures, counted from their headers before decoding: four 4096 x 4096 maps, or
+// one 8192 x 8192 PNG (which decodes whole before it is reduced). A JPEG over the side limit decodes at 1/2, 1/4
+// or 1/8 of its size, as small as keeps its longer side at kMaxTextureSide or above (smaller to fit the budget).
+inline constexpr std::uint64_t kMaxTextureDecodePixels = std::uint64_t{1} << 26;
+
 // Loads an .obj file and the .mtl files it names. Polygons are triangulated and
 // corners with different position/uv/normal index triples become separate
 // vertices. Missing normals are computed (smooth, but faces meeting at more than
 // 60 degrees keep separate normals); faces without a material get a default
 // grey diffuse one.
+// Polygons of more than 64 corners are split as a fan from their first corner
+// (smaller ones by tinyobjloader's ear clipping). Loading takes time linear in
+// the file's size and the textures' pixels.
 // Throws std::runtime_error naming the file when it is missing, unparsable,
-// holds no triangles or non-finite numbers, or a texture cannot be read.
+// over a budget above, holds no triangles or non-finite numbers, or a texture
+// cannot be read.
 Mesh load_mesh_file(const std::string& path);
 
 // Writes `path` (.obj) and a sibling .mtl (same stem), plus one PNG per textured
