@@ -716,6 +716,7 @@ struct CaptureServer::Impl {
         return;
       }
       std::lock_guard lock(mu);
+      close_idle_locked(monotonic_ns());  // a newcomer at a full server: idle places first
       if (static_cast<int>(clients.size()) >= opt.max_clients) {
         detail::send_packet(fd.get(), proto::encode_error(0, "too many clients"));
         continue;
@@ -915,14 +916,23 @@ struct CaptureServer::Impl {
     return s;
   }
 
-  // Closes the connections silent for idle_timeout. One waiting for a command
-  // of its own is not idle: its idle time starts again when it is answered.
+  // While every place is taken, closes the connections silent for
+  // idle_timeout: they make room. Below the limit a quiet client keeps its
+  // connection (an appliance rendering for minutes, its viewfinder stopped).
+  // One waiting for a command of its own is not idle: its idle time starts
+  // again when it is answered.
   void close_idle() {
     const std::int64_t now = monotonic_ns(), limit = to_ns(opt.idle_timeout);
     if (limit <= 0 || now < next_idle_check) return;
     next_idle_check = now + limit;
-    std::vector<std::uint32_t> idle;
     std::lock_guard lock(mu);
+    close_idle_locked(now);
+  }
+
+  void close_idle_locked(std::int64_t now) {
+    const std::int64_t limit = to_ns(opt.idle_timeout);
+    if (limit <= 0 || static_cast<int>(clients.size()) < opt.max_clients) return;
+    std::vector<std::uint32_t> idle;
     {
       std::lock_guard jobs_lock(job_mu);
       for (auto& [id, c] : clients) {

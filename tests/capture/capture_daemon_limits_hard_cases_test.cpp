@@ -200,16 +200,36 @@ TEST(CaptureDaemonLimits, AnIdleConnectionIsClosedAndFreesItsPlace) {
     ASSERT_TRUE(r);
     EXPECT_EQ(r->type, proto::MessageType::StillFrame);
   }
-  // Answered and then silent: told why, and closed.
+  // Answered (a first) and then silent while the daemon is full: told why, and closed.
   const auto closing = next_reply(*a);
   ASSERT_TRUE(closing);
   EXPECT_EQ(closing->error, "connection closed: idle for 300 ms");
   EXPECT_TRUE(a->hung_up());
+  // Its place is free; and a newcomer at a full daemon takes the place of
+  // whoever has been silent past the timeout.
+  auto newcomer = welcomed(d.path());
+  std::this_thread::sleep_for(2 * kIdle);
+  EXPECT_NO_THROW(welcomed(d.path()));
   EXPECT_TRUE(b->hung_up());
-  // Their places are free.
-  EXPECT_NO_THROW(welcomed(d.path()));
-  EXPECT_NO_THROW(welcomed(d.path()));
   EXPECT_EQ(d.server->request_counts().dropped, 0u);
+}
+
+// Below the limit nobody is waiting for a place: a quiet client (an
+// appliance rendering, its viewfinder stopped) keeps its connection.
+TEST(CaptureDaemonLimits, ASilentClientKeepsItsPlaceWhileThereIsRoom) {
+  constexpr auto kIdle = 200ms;
+  Daemon d([&](CaptureServerOptions& o) {
+    o.max_clients = 3;
+    o.idle_timeout = kIdle;
+  });
+  auto quiet = welcomed(d.path());
+  auto other = welcomed(d.path());
+  EXPECT_FALSE(quiet->hung_up(4 * kIdle));
+  EXPECT_FALSE(other->hung_up(kIdle));
+  // A third fills the daemon: now the silent two make room for a fourth.
+  auto third = welcomed(d.path());
+  EXPECT_NO_THROW(welcomed(d.path()));
+  EXPECT_TRUE(quiet->hung_up());
 }
 
 }  // namespace
