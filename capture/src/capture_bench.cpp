@@ -247,6 +247,38 @@ std::string bench_socket_path() {
   return (dir / "capture.sock").string();
 }
 
+// A daemon for one bench run, started: on the given socket, or on one in a
+// fresh folder that is removed with it.
+class BenchDaemon {
+ public:
+  BenchDaemon(FrameSourceFactory factory, const std::string& socket_path, const std::string& camera_id,
+              const StreamConfig& stream)
+      : own_folder_(socket_path.empty()) {
+    CaptureServerOptions so;
+    so.socket_path = own_folder_ ? bench_socket_path() : socket_path;
+    so.camera_id = camera_id;
+    so.stream = stream;
+    socket_path_ = so.socket_path;
+    server_ = std::make_unique<CaptureServer>(std::move(factory), so);
+    server_->start();
+  }
+  ~BenchDaemon() {
+    server_->stop();
+    if (own_folder_) {
+      std::error_code ec;
+      std::filesystem::remove_all(std::filesystem::path(socket_path_).parent_path(), ec);
+    }
+  }
+  BenchDaemon(const BenchDaemon&) = delete;
+  BenchDaemon& operator=(const BenchDaemon&) = delete;
+  const std::string& socket_path() const { return socket_path_; }
+
+ private:
+  bool own_folder_;
+  std::string socket_path_;
+  std::unique_ptr<CaptureServer> server_;
+};
+
 }  // namespace
 
 FrameSourceFactory synthetic_source_factory() {
@@ -262,18 +294,11 @@ DaemonBenchResult measure_daemon_throughput(const FrameSourceFactory& factory, c
     if (!inner) return nullptr;
     return std::make_unique<TimedSource>(std::move(inner), times);
   };
-  const bool own_folder = options.socket_path.empty();
-  CaptureServerOptions so;
-  so.socket_path = own_folder ? bench_socket_path() : options.socket_path;
-  so.camera_id = options.camera_id;
-  so.stream = options.stream;
-  CaptureServer server(timed, so);
-  server.start();
-
   DaemonBenchResult result;
   std::vector<double> total, source, daemon;
   {
-    CaptureClient client(so.socket_path);
+    const BenchDaemon server(timed, options.socket_path, options.camera_id, options.stream);
+    CaptureClient client(server.socket_path());
     client.start_viewfinder();
     const auto start = Clock::now();
     const auto end = options.duration.count() > 0 ? start + options.duration : Clock::time_point::max();
@@ -309,11 +334,6 @@ DaemonBenchResult measure_daemon_throughput(const FrameSourceFactory& factory, c
     for (const auto& c : st.clients)
       if (c.client_id == client.client_id()) result.frames_dropped = c.frames_dropped;
   }
-  server.stop();
-  if (own_folder) {
-    std::error_code ec;
-    std::filesystem::remove_all(std::filesystem::path(so.socket_path).parent_path(), ec);
-  }
   result.fps = result.seconds > 0 ? result.frames_received / result.seconds : 0;
   result.total = stats_of(std::move(total));
   result.source = stats_of(std::move(source));
@@ -331,21 +351,14 @@ FloodBenchResult measure_still_latency_under_flood(const FrameSourceFactory& fac
     if (!inner) return nullptr;
     return std::make_unique<SlowStillSource>(std::move(inner), still_time);
   };
-  const bool own_folder = options.socket_path.empty();
-  CaptureServerOptions so;
-  so.socket_path = own_folder ? bench_socket_path() : options.socket_path;
-  so.camera_id = options.camera_id;
-  so.stream = options.stream;
-  CaptureServer server(slow, so);
-  server.start();
-
   FloodBenchResult result;
   std::vector<double> latency;
   std::exception_ptr failure;
   {
-    CaptureClient client(so.socket_path);
+    const BenchDaemon server(slow, options.socket_path, options.camera_id, options.stream);
+    CaptureClient client(server.socket_path());
     Flood flood;
-    std::thread flooder([&] { flood.run(so.socket_path, options.flood_depth); });
+    std::thread flooder([&] { flood.run(server.socket_path(), options.flood_depth); });
     try {
       while (!flood.primed) std::this_thread::sleep_for(std::chrono::milliseconds(1));
       const auto start = Clock::now();
@@ -365,11 +378,6 @@ FloodBenchResult measure_still_latency_under_flood(const FrameSourceFactory& fac
     if (!failure) failure = flood.error;
     result.flood_stills = flood.stills;
     result.flood_refused = flood.refused;
-  }
-  server.stop();
-  if (own_folder) {
-    std::error_code ec;
-    std::filesystem::remove_all(std::filesystem::path(so.socket_path).parent_path(), ec);
   }
   if (failure) std::rethrow_exception(failure);
   result.latency = stats_of(std::move(latency));

@@ -16,27 +16,11 @@ namespace propcam::capture {
 namespace {
 
 using namespace std::chrono_literals;
+using test::Daemon;
 using test::intact;
 using test::RawClient;
 using test::TestWorld;
 namespace proto = protocol;
-
-struct Daemon {
-  std::shared_ptr<TestWorld> world = std::make_shared<TestWorld>();
-  CaptureServerOptions options;
-  std::unique_ptr<CaptureServer> server;
-
-  explicit Daemon(const std::function<void(CaptureServerOptions&)>& tweak = {}, int permits = 0) {
-    options = test::test_options(test::temp_socket("capture.sock"));
-    if (tweak) tweak(options);
-    world->permits = permits;
-    server = std::make_unique<CaptureServer>(test::test_factory(world), options);
-    server->start();
-    // The camera opens on the server's thread; tests start from an open camera.
-    test::eventually([&] { return server->status().device_state != protocol::DeviceState::Closed; });
-  }
-  const std::string& path() const { return options.socket_path; }
-};
 
 void round_trip(CaptureClient& c) { (void)c.status(); }
 

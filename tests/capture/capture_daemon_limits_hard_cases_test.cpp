@@ -16,23 +16,10 @@ namespace proto = protocol;
 
 constexpr std::uint64_t kFirstStill = 1'000'000;  // the test camera's first still's sequence number
 
-struct Daemon {
-  std::shared_ptr<TestWorld> world = std::make_shared<TestWorld>();
-  CaptureServerOptions options;
-  std::unique_ptr<CaptureServer> server;
-
-  explicit Daemon(const std::function<void(CaptureServerOptions&)>& tweak = {}) {
-    options = test::test_options(test::temp_socket("capture.sock"));
-    if (tweak) tweak(options);
-    world->permits = 0;
-    world->still_permits = 0;  // stills wait at the gate
-    server = std::make_unique<CaptureServer>(test::test_factory(world), options);
-    server->start();
-    test::eventually([&] { return server->status().device_state != protocol::DeviceState::Closed; });
-  }
-  ~Daemon() { world->free_stills(); }  // no still left waiting while the server stops
-  const std::string& path() const { return options.socket_path; }
-};
+// Stills wait at the gate until a test lets them through.
+test::Daemon gated_daemon(const std::function<void(CaptureServerOptions&)>& tweak = {}) {
+  return test::Daemon(tweak, 0, test::Daemon::Stills::Gated);
+}
 
 proto::Packet still_request(std::uint32_t rid) {
   proto::CaptureStillRequest req;
@@ -78,7 +65,7 @@ void sync(RawClient& c) {
 }
 
 TEST(CaptureDaemonLimits, ARequestOverTheClientsLimitGetsAnErrorNamingIt) {
-  Daemon d;
+  auto d = gated_daemon();
   auto a = welcomed(d.path());
   const auto limit = static_cast<std::uint32_t>(kMaxRequestsPerClient);
   for (std::uint32_t rid = 1; rid <= limit + 1; ++rid) ASSERT_TRUE(a->send(still_request(rid)));
@@ -121,7 +108,7 @@ TEST(CaptureDaemonLimits, ARequestOverTheClientsLimitGetsAnErrorNamingIt) {
 }
 
 TEST(CaptureDaemonLimits, TheQueuedRequestsOfAClientThatLeftAreNeverRun) {
-  Daemon d;
+  auto d = gated_daemon();
   {
     auto flood = welcomed(d.path());
     for (std::uint32_t rid = 1; rid <= static_cast<std::uint32_t>(kMaxRequestsPerClient); ++rid)
@@ -146,7 +133,7 @@ TEST(CaptureDaemonLimits, TheQueuedRequestsOfAClientThatLeftAreNeverRun) {
 }
 
 TEST(CaptureDaemonLimits, ClientsTakeTurnsSoOnesStillGoesBeforeAFloodsLaterOnes) {
-  Daemon d;
+  auto d = gated_daemon();
   auto a = welcomed(d.path());
   auto b = welcomed(d.path());
   const auto limit = static_cast<std::uint32_t>(kMaxRequestsPerClient);
@@ -176,7 +163,7 @@ TEST(CaptureDaemonLimits, ClientsTakeTurnsSoOnesStillGoesBeforeAFloodsLaterOnes)
 
 TEST(CaptureDaemonLimits, AnIdleConnectionIsClosedAndFreesItsPlace) {
   constexpr auto kIdle = 300ms;
-  Daemon d([&](CaptureServerOptions& o) {
+  auto d = gated_daemon([&](CaptureServerOptions& o) {
     o.max_clients = 2;
     o.idle_timeout = kIdle;
   });
@@ -218,7 +205,7 @@ TEST(CaptureDaemonLimits, AnIdleConnectionIsClosedAndFreesItsPlace) {
 // appliance rendering, its viewfinder stopped) keeps its connection.
 TEST(CaptureDaemonLimits, ASilentClientKeepsItsPlaceWhileThereIsRoom) {
   constexpr auto kIdle = 200ms;
-  Daemon d([&](CaptureServerOptions& o) {
+  auto d = gated_daemon([&](CaptureServerOptions& o) {
     o.max_clients = 3;
     o.idle_timeout = kIdle;
   });

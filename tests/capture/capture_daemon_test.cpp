@@ -14,26 +14,8 @@ namespace {
 
 using namespace std::chrono_literals;
 using test::intact;
+using test::Daemon;
 using test::TestWorld;
-
-// A server on a fresh socket with the synthetic camera, started.
-struct Daemon {
-  std::shared_ptr<TestWorld> world = std::make_shared<TestWorld>();
-  CaptureServerOptions options;
-  std::unique_ptr<CaptureServer> server;
-
-  explicit Daemon(const std::function<void(CaptureServerOptions&)>& tweak = {}) {
-    options = test::test_options(test::temp_socket("capture.sock"));
-    if (tweak) tweak(options);
-    if (std::getenv("PROPCAMD_TEST_LOG")) options.log = [](const std::string& l) { std::fprintf(stderr, "propcamd: %s\n", l.c_str()); };
-    world->permits = 0;  // gated: each test lets frames through
-    server = std::make_unique<CaptureServer>(test::test_factory(world), options);
-    server->start();
-    // The camera opens on the server's thread; tests start from an open camera.
-    test::eventually([&] { return server->status().device_state != protocol::DeviceState::Closed; });
-  }
-  const std::string& path() const { return options.socket_path; }
-};
 
 // A request answered: the server has handled everything this client sent
 // before, releases of the frames it dropped included. Without it the next

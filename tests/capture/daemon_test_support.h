@@ -15,6 +15,8 @@
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <functional>
@@ -90,31 +92,22 @@ struct TestWorld {
   int starts = 0;
   CameraControls controls;
 
-  void allow(int n) {
+  void allow(int n) { grant(permits, n); }
+  void free_run() { ungate(permits); }
+  void allow_stills(int n) { grant(still_permits, n); }
+  void free_stills() { ungate(still_permits); }
+  // n more through `gate` (an open gate, -1, becomes one of n).
+  void grant(int& gate, int n) {
     {
       std::lock_guard lock(mu);
-      permits = permits < 0 ? n : permits + n;
+      gate = gate < 0 ? n : gate + n;
     }
     cv.notify_all();
   }
-  void free_run() {
+  void ungate(int& gate) {
     {
       std::lock_guard lock(mu);
-      permits = -1;
-    }
-    cv.notify_all();
-  }
-  void allow_stills(int n) {
-    {
-      std::lock_guard lock(mu);
-      still_permits = still_permits < 0 ? n : still_permits + n;
-    }
-    cv.notify_all();
-  }
-  void free_stills() {
-    {
-      std::lock_guard lock(mu);
-      still_permits = -1;
+      gate = -1;
     }
     cv.notify_all();
   }
@@ -297,6 +290,33 @@ inline bool eventually(const std::function<bool()>& done, std::chrono::seconds l
   }
   return done();
 }
+
+// A server on a fresh socket with the test camera, started, its camera open.
+// `permits`: viewfinder frames the camera may deliver (TestWorld::allow;
+// -1: free run). Gated stills wait for TestWorld::allow_stills.
+// PROPCAMD_TEST_LOG set: the server's log on stderr.
+struct Daemon {
+  enum class Stills { Free, Gated };
+  std::shared_ptr<TestWorld> world = std::make_shared<TestWorld>();
+  CaptureServerOptions options;
+  std::unique_ptr<CaptureServer> server;
+
+  explicit Daemon(const std::function<void(CaptureServerOptions&)>& tweak = {}, int permits = 0,
+                  Stills stills = Stills::Free) {
+    options = test_options(temp_socket("capture.sock"));
+    if (tweak) tweak(options);
+    if (std::getenv("PROPCAMD_TEST_LOG"))
+      options.log = [](const std::string& l) { std::fprintf(stderr, "propcamd: %s\n", l.c_str()); };
+    world->permits = permits;
+    if (stills == Stills::Gated) world->still_permits = 0;
+    server = std::make_unique<CaptureServer>(test_factory(world), options);
+    server->start();
+    // The camera opens on the server's thread; tests start from an open camera.
+    eventually([&] { return server->status().device_state != protocol::DeviceState::Closed; });
+  }
+  ~Daemon() { world->free_stills(); }  // no still left waiting while the server stops
+  const std::string& path() const { return options.socket_path; }
+};
 
 // The next frame within a generous bound, skipping timeouts.
 inline CaptureResult next_non_timeout(CaptureClient& c, std::chrono::seconds limit = std::chrono::seconds(20)) {
