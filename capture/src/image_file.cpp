@@ -210,16 +210,29 @@ void throw_if_damaged(OIIO::ImageInput& input, const std::string& path) {
                              "); copy the file again or take the photo again");
 }
 
-}  // namespace
-
-cv::Mat read_image_float(const std::string& path) {
+// An image file opened, with pixels; `what` ("image", "photo") names it in
+// the errors.
+std::unique_ptr<OIIO::ImageInput> open_image(const std::string& path, const char* what) {
   check_is_a_file(path);
   auto input = OIIO::ImageInput::open(path);
-  if (!input) throw std::runtime_error("cannot open image '" + path + "': " + OIIO::geterror());
+  if (!input) throw std::runtime_error(std::string("cannot open ") + what + " '" + path + "': " + OIIO::geterror());
   const OIIO::ImageSpec& spec = input->spec();
   if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0)
     throw std::runtime_error("image '" + path + "' has no pixels");
+  return input;
+}
+
+bool stored_as_linear(const OIIO::ImageSpec& spec, const std::string& path) {
+  return spec.format.is_floating_point() || is_float_format(path);
+}
+
+// The whole image as stored (float channels); `stored_linear` (if given)
+// says whether the file holds linear values.
+cv::Mat read_stored(const std::string& path, const char* what, bool* stored_linear) {
+  const auto input = open_image(path, what);
+  const OIIO::ImageSpec& spec = input->spec();
   check_image_size(path, spec.width, spec.height, spec.nchannels);
+  if (stored_linear) *stored_linear = stored_as_linear(spec, path);
   cv::Mat image(spec.height, spec.width, CV_32FC(spec.nchannels));
   if (!input->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, image.data))
     throw std::runtime_error("cannot read image '" + path + "': " + input->geterror());
@@ -227,6 +240,10 @@ cv::Mat read_image_float(const std::string& path) {
   input->close();
   return image;
 }
+
+}  // namespace
+
+cv::Mat read_image_float(const std::string& path) { return read_stored(path, "image", nullptr); }
 
 namespace {
 
@@ -253,10 +270,6 @@ cv::Mat stored_rows_to_linear(const cv::Mat& raw, bool stored_linear) {
   return rgb;
 }
 
-bool stored_as_linear(const OIIO::ImageSpec& spec, const std::string& path) {
-  return spec.format.is_floating_point() || is_float_format(path);
-}
-
 // Same folder (so rename is atomic), same extension (so the writer picks the format).
 std::filesystem::path temp_path_beside(const std::string& path) {
   const std::filesystem::path final_path(path);
@@ -266,16 +279,12 @@ std::filesystem::path temp_path_beside(const std::string& path) {
   return final_path.parent_path() / temp_name;
 }
 
-
 }  // namespace
 
 cv::Mat load_photo_linear(const std::string& path) {
-  check_is_a_file(path);
-  auto input = OIIO::ImageInput::open(path);
-  if (!input) throw std::runtime_error("cannot open photo '" + path + "': " + OIIO::geterror());
-  const OIIO::ImageSpec spec = input->spec();
-  input->close();
-  return stored_rows_to_linear(read_image_float(path), stored_as_linear(spec, path));
+  bool stored_linear = false;
+  const cv::Mat raw = read_stored(path, "photo", &stored_linear);
+  return stored_rows_to_linear(raw, stored_linear);
 }
 
 struct PhotoRowReader::Impl {
@@ -287,13 +296,9 @@ struct PhotoRowReader::Impl {
 };
 
 PhotoRowReader::PhotoRowReader(const std::string& path) : impl_(std::make_unique<Impl>()) {
-  check_is_a_file(path);
   impl_->path = path;
-  impl_->input = OIIO::ImageInput::open(path);
-  if (!impl_->input) throw std::runtime_error("cannot open photo '" + path + "': " + OIIO::geterror());
+  impl_->input = open_image(path, "photo");
   const OIIO::ImageSpec& spec = impl_->input->spec();
-  if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0)
-    throw std::runtime_error("image '" + path + "' has no pixels");
   if (spec.nchannels > CV_CN_MAX)
     throw std::runtime_error("image '" + path + "' has " + std::to_string(spec.nchannels) + " channels");
   impl_->channels = spec.nchannels;
@@ -316,12 +321,8 @@ cv::Mat PhotoRowReader::read(int first_row, int rows) {
 }
 
 cv::Size photo_file_size(const std::string& path) {
-  check_is_a_file(path);
-  auto input = OIIO::ImageInput::open(path);
-  if (!input) throw std::runtime_error("cannot open photo '" + path + "': " + OIIO::geterror());
-  const OIIO::ImageSpec& spec = input->spec();
-  if (spec.width <= 0 || spec.height <= 0) throw std::runtime_error("image '" + path + "' has no pixels");
-  return {spec.width, spec.height};
+  const auto input = open_image(path, "photo");
+  return {input->spec().width, input->spec().height};
 }
 
 cv::Mat load_photo_reduced(const std::string& path, cv::Size size) {
