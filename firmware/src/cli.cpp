@@ -179,7 +179,7 @@ int cmd_infer(const InferArgs& a) {
   if (a.out.empty()) throw std::invalid_argument("infer needs -o SCENE_DIR");
   const firmware::WorkingPhoto photo = load_photo_for_work(a.photo, working_pixels_of(a.working_size), progress);
   inference::SceneModel scene =
-      infer_with_progress(photo.working, a.photo, a.camera_height, a.lens, progress, photo.scale);
+      infer_with_progress(photo.working, a.photo, a.camera_height, a.lens, progress, photo.scale());
   inference::save_scene(scene, a.out);
   if (a.json_out) {
     std::cout << json{{"scene", a.out},
@@ -329,7 +329,7 @@ int cmd_composite(const CompositeArgs& a) {
   placement.pixel_u *= static_cast<double>(photo.cols) / loaded.full_size.width;
   placement.pixel_v *= static_cast<double>(photo.rows) / loaded.full_size.height;
   if (a.scene_dir.empty()) {
-    scene = infer_with_progress(photo, a.photo, a.camera_height, a.lens, progress, loaded.scale);
+    scene = infer_with_progress(photo, a.photo, a.camera_height, a.lens, progress, loaded.scale());
     if (!a.json_out) print_reports(scene);
     if (!a.save_scene.empty()) inference::save_scene(scene, a.save_scene);
   }

@@ -108,7 +108,6 @@ WorkingPhoto load_working_photo(const std::string& path, long budget, cv::Size f
     throw std::runtime_error("the photo '" + path + "' changed while it was being read");
   photo.file_bytes = fs::file_size(path);
   photo.file_time = fs::last_write_time(path);
-  photo.scale = static_cast<double>(size.width) / photo.full_size.width;
   return photo;
 }
 

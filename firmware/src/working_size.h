@@ -69,10 +69,10 @@ struct WorkingPhoto {
   std::string path;
   cv::Size full_size;
   cv::Mat working;     // linear sRGB, reduced (the photo itself when it fits)
-  double scale = 1.0;  // working width / full width
   std::uintmax_t file_bytes = 0;
   std::filesystem::file_time_type file_time;
   bool reduced() const { return working.size() != full_size; }
+  double scale() const { return static_cast<double>(working.cols) / full_size.width; }  // working width / full width
 };
 
 // Reads `path` reduced to `forced` when given (a scene folder's size), else

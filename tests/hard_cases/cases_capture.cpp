@@ -40,6 +40,13 @@ cv::Mat small_rgb8(int w, int h) {
   return m;
 }
 
+// `half`: the first half of `full`'s bytes (a file cut short in a copy).
+void write_first_half(const fs::path& full, const fs::path& half) {
+  std::ifstream in(full, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  write_text_file(half, bytes.substr(0, bytes.size() / 2));
+}
+
 // A valid one-frame RGB24 recording of 4x2 pixels, for corrupting.
 void write_recording(const fs::path& dir) {
   capture::Recorder rec(dir, "hard:case");
@@ -121,9 +128,7 @@ void add_capture_cases(std::vector<HardCase>& cases) {
                      ScratchDir dir("TruncatedPng");
                      const fs::path full = dir / "full.png", half = dir / "half.png";
                      capture::write_image(full.string(), small_rgb8(8, 8));
-                     std::ifstream in(full, std::ios::binary);
-                     std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-                     write_text_file(half, bytes.substr(0, bytes.size() / 2));
+                     write_first_half(full, half);
                      capture::load_photo_linear(half.string());
                    }});
   cases.push_back({"TruncatedJpeg", m, "a 128x96 JPEG cut to half its bytes, through load_photo_linear",
@@ -132,9 +137,7 @@ void add_capture_cases(std::vector<HardCase>& cases) {
                      const fs::path full = dir / "full.jpg", half = dir / "half.jpg";
                      capture::write_image(full.string(), small_rgb8(128, 96));
                      capture::load_photo_linear(full.string());  // whole, it reads
-                     std::ifstream in(full, std::ios::binary);
-                     std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-                     write_text_file(half, bytes.substr(0, bytes.size() / 2));
+                     write_first_half(full, half);
                      capture::load_photo_linear(half.string());
                    }});
   cases.push_back({"FolderGivenAsPhoto", m, "a folder named photo.png, through load_photo_linear",
