@@ -173,7 +173,6 @@ void SceneModel::validate() const {
   if (width <= 0 || height <= 0) throw std::runtime_error("scene model: no image size");
   for (double v : {fx, fy, cx, cy, camera_height_m, gamma})
     if (!std::isfinite(v)) throw std::runtime_error("scene model: non-finite camera number");
-  if (!(fx > 0 && fy > 0)) throw std::runtime_error("scene model: focal length must be positive");
   require_in_range(fx, kFocalPxRange, "scene.json focal length K.fx");
   require_in_range(fy, kFocalPxRange, "scene.json focal length K.fy");
   require_in_range(camera_height_m, kCameraHeightRange, "scene.json camera_height_m");
