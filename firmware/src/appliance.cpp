@@ -381,8 +381,9 @@ void Appliance::start_analysis(JobId job) {
     shared_->analysis_start = std::chrono::steady_clock::now();
   }
   const double height = options_.board.camera_mount_height_m;
+  const long working_pixels = options_.board.budgets.working_pixels;
   std::shared_ptr<Shared> shared = shared_;
-  jobs_->run(job, [this, shared, job, still, height](const std::atomic<bool>& cancel) {
+  jobs_->run(job, [this, shared, job, still, height, working_pixels](const std::atomic<bool>& cancel) {
     auto stage_start = std::chrono::steady_clock::now();
     auto on_stage = [&](const std::string& name) {
       if (cancel) throw JobCancelled();
@@ -404,7 +405,7 @@ void Appliance::start_analysis(JobId job) {
       stage_start = std::chrono::steady_clock::now();
     };
     try {
-      auto analysis = std::make_shared<Analysis>(analyse_still(still.linear, still.rgb8, height, on_stage));
+      auto analysis = std::make_shared<Analysis>(analyse_still(still.linear, still.rgb8, height, working_pixels, on_stage));
       std::vector<Spot> spots = find_spots(analysis->scene, kMaxSpots);
       std::vector<ui_fb::StageLine> lines;
       for (const auto& r : analysis->scene.reports) {
@@ -454,11 +455,13 @@ void Appliance::start_render(JobId job, int prop_index) {
   keep_render_ = keep;
   render_job_ = job;
   const int threads = options_.render_threads;
+  const double time_budget = options_.board.budgets.render_seconds;
   std::shared_ptr<Shared> shared = shared_;
-  jobs_->run(job, [this, shared, job, analysis, spot, prop, tier, keep, threads](const std::atomic<bool>& cancel) {
+  jobs_->run(job, [this, shared, job, analysis, spot, prop, tier, keep, threads,
+                   time_budget](const std::atomic<bool>& cancel) {
     std::unique_ptr<CompositeRender> render;
     try {
-      render = std::make_unique<CompositeRender>(analysis, prop, spot, tier, threads);
+      render = std::make_unique<CompositeRender>(analysis, prop, spot, tier, threads, time_budget);
       while (!render->finished() && !cancel) {
         render->run_pass(&cancel);
         if (cancel) break;
@@ -514,13 +517,15 @@ void Appliance::start_export(JobId job) {
       if (!analysis || !render) throw std::logic_error("export without a composite");
       const Adjustment adjustment = adjustment_from_steps(steps, render->prop_distance_m);
       ExportItem item;
-      item.composite_srgb8 = capture::linear_to_srgb8(adjusted_composite(*analysis, *render, adjustment));
+      item.composite_srgb8 = capture::linear_to_srgb8(exported_composite(*analysis, *render, adjustment));
       item.prop_name = prop_name;
       item.metadata = {{"prop", prop_name},
                        {"base_pixel", {render->base_pixel.x, render->base_pixel.y}},
                        {"surface", spot.surface},
                        {"tier", to_string(model.tier)},
                        {"samples_per_pixel", render->samples_per_pixel},
+                       {"stopped_by_time_budget", render->stopped_by_time_budget},
+                       {"working_size", {analysis->photo_linear.cols, analysis->photo_linear.rows}},
                        {"render_seconds", render->elapsed_seconds},
                        {"converged_fraction", render->converged_fraction},
                        {"scene_light_ev", adjustment.scene_ev},

@@ -22,23 +22,31 @@
 #include "propcam/render/props.h"
 #include "propcam/render/relight.h"
 #include "propcam/render/transport_plan.h"
+#include "working_size.h"
 
 namespace propcam::firmware {
 namespace fs = std::filesystem;
 using appliance::Tier;
 
 Analysis analyse_still(const cv::Mat& photo_linear, const cv::Mat& photo_rgb8, double camera_height_m,
-                       const std::function<void(const std::string&)>& on_stage) {
+                       long working_pixels, const std::function<void(const std::string&)>& on_stage) {
   inference::InferenceOptions options;
   options.camera_height_m = camera_height_m;
   options.on_stage = on_stage;
   Analysis a;
-  a.photo_linear = photo_linear;
-  a.photo_rgb8 = photo_rgb8;
-  a.scene = inference::infer_scene(photo_linear, options);
+  const cv::Size working = working_size(photo_linear.size(), working_pixels);
+  if (working != photo_linear.size()) {
+    a.full_photo_linear = photo_linear;
+    a.photo_linear = reduce_to(photo_linear, working);
+    a.photo_rgb8 = reduce_to(photo_rgb8, working);
+  } else {
+    a.photo_linear = photo_linear;
+    a.photo_rgb8 = photo_rgb8;
+  }
+  a.scene = inference::infer_scene(a.photo_linear, options);
   a.scene.source_photo = "appliance still";
   // Light is added in the photo's own linear space (its camera response undone).
-  a.scene_photo = capture::srgb_linear_to_response_linear(photo_linear, a.scene.gamma);
+  a.scene_photo = capture::srgb_linear_to_response_linear(a.photo_linear, a.scene.gamma);
   return a;
 }
 
@@ -391,8 +399,8 @@ double samples_needed(const render::TileStatus& t, double target) {
 }  // namespace
 
 CompositeRender::CompositeRender(std::shared_ptr<const Analysis> analysis, const PropEntry& prop, const Spot& spot,
-                                 TierSpec tier, int threads)
-    : analysis_(std::move(analysis)), tier_(tier) {
+                                 TierSpec tier, int threads, double time_budget_seconds)
+    : analysis_(std::move(analysis)), tier_(tier), time_budget_seconds_(time_budget_seconds) {
   prop_ = load_prop(prop.source);
   world_ = build_composite_world(analysis_->scene, prop_, placement_at(spot, height_of(prop, prop_)));
   render::RenderSettings base;
@@ -414,14 +422,19 @@ CompositeRender::CompositeRender(std::shared_ptr<const Analysis> analysis, const
 }
 
 bool CompositeRender::run_pass(const std::atomic<bool>* cancel) {
-  if (session_->finished()) return false;
+  if (finished()) return false;
   const render::PassReport report = session_->run_pass(cancel);
   passes_.push_back(report);
   seconds_ += report.pass_seconds;
   return !report.cancelled;
 }
 
-bool CompositeRender::finished() const { return session_->finished(); }
+bool CompositeRender::finished() const { return session_->finished() || out_of_time(); }
+
+bool CompositeRender::out_of_time() const {
+  return time_budget_seconds_ > 0 && !passes_.empty() && !session_->finished() &&
+         seconds_ + session_->predicted_next_pass_seconds() > time_budget_seconds_;
+}
 
 double CompositeRender::pixel_samples() const {
   double total = 0;
@@ -464,7 +477,8 @@ std::shared_ptr<const RenderSnapshot> CompositeRender::snapshot(bool final_layer
   }
   for (const auto& d : plan_.decisions)
     if (!d.simulated) s->skipped_effects.push_back("no " + d.effect);
-  s->finished = session_->finished();
+  s->finished = finished();
+  s->stopped_by_time_budget = out_of_time();
   s->prop_distance_m = world_.camera.world_to_camera(world_.placed.base_world.cast<double>()).z();
   s->base_pixel = {world_.placement.pixel_u, world_.placement.pixel_v};
   if (final_layers) {
@@ -532,6 +546,18 @@ cv::Mat adjusted_composite(const Analysis& analysis, const RenderSnapshot& rende
     out = render::apply_depth_of_field(out, render.depth, analysis.scene.fx, dof);
   }
   return capture::response_linear_to_srgb_linear(out, analysis.scene.gamma);
+}
+
+cv::Mat exported_composite(const Analysis& analysis, const RenderSnapshot& render, const Adjustment& adjustment) {
+  cv::Mat working = adjusted_composite(analysis, render, adjustment);
+  if (analysis.full_photo_linear.empty()) return working;
+  // Both in linear sRGB. Outside the prop the change is carried up as a
+  // ratio, which is the same in the camera response's space.
+  const cv::Mat coverage = render.layers.coverage.empty() ? cv::Mat(working.size(), CV_32F, cv::Scalar(0))
+                                                          : render.layers.coverage;
+  cv::Mat full = analysis.full_photo_linear.clone();
+  deliver_at_full_size(full, analysis.photo_linear, working, coverage);
+  return full;
 }
 
 }  // namespace propcam::firmware

@@ -30,16 +30,20 @@ struct JobCancelled : std::runtime_error {
 // ---------------------------------------------------------------- analysis
 
 struct Analysis {
-  cv::Mat photo_linear;  // CV_32FC3 linear sRGB, as the camera delivered it
+  cv::Mat photo_linear;  // CV_32FC3 linear sRGB at the working size (job_budget.h)
   cv::Mat scene_photo;   // the same in the camera response's linear space (what light adds in)
-  cv::Mat photo_rgb8;    // for the screen
+  cv::Mat photo_rgb8;    // for the screen, at the working size
+  // The still as the camera delivered it, when larger than the working size:
+  // the composite is exported at its size.
+  cv::Mat full_photo_linear;
   inference::SceneModel scene;
 };
 
-// Infers the scene of a still. `on_stage` is called before each stage with
-// its name; it may throw JobCancelled to stop between stages.
+// Infers the scene of a still, reduced to `working_pixels` when larger.
+// `on_stage` is called before each stage with its name; it may throw
+// JobCancelled to stop between stages.
 Analysis analyse_still(const cv::Mat& photo_linear, const cv::Mat& photo_rgb8, double camera_height_m,
-                       const std::function<void(const std::string&)>& on_stage);
+                       long working_pixels, const std::function<void(const std::string&)>& on_stage);
 
 // ---------------------------------------------------------------- props
 
@@ -146,6 +150,7 @@ struct RenderSnapshot {
   int skipped_tiles = 0;
   std::vector<std::string> skipped_effects;
   bool finished = false;
+  bool stopped_by_time_budget = false;  // finished because the next pass would end after the budget
   // Filled when the render ends (converged or stopped): for relighting and depth of field.
   render::LightLayers layers;
   cv::Mat depth;
@@ -153,14 +158,17 @@ struct RenderSnapshot {
   cv::Point2d base_pixel;  // where the prop stands (the spot, or a level pixel beside it)
 };
 
-// One progressive render of a placed prop.
+// One progressive render of a placed prop. It ends when its tiles converge
+// or reach the tier's samples, or when the next pass would end after
+// `time_budget_seconds` of rendering (0: no budget).
 class CompositeRender {
  public:
   CompositeRender(std::shared_ptr<const Analysis> analysis, const PropEntry& prop, const Spot& spot, TierSpec tier,
-                  int threads);
+                  int threads, double time_budget_seconds = 0.0);
   // Runs one pass; false when there is nothing left to do.
   bool run_pass(const std::atomic<bool>* cancel);
   bool finished() const;
+  bool out_of_time() const;
   // A snapshot of the current state; with `final_layers` also the light layers and depth.
   std::shared_ptr<const RenderSnapshot> snapshot(bool final_layers) const;
   double pixel_samples() const;  // traced so far
@@ -172,6 +180,7 @@ class CompositeRender {
   CompositeWorld world_;
   render::TransportPlan plan_;
   TierSpec tier_;
+  double time_budget_seconds_ = 0.0;
   std::unique_ptr<render::RenderSession> session_;
   std::vector<render::PassReport> passes_;
   double seconds_ = 0.0;
@@ -195,5 +204,8 @@ std::string describe_step(appliance::RelightParam param, int step, double prop_d
 
 // The composite as the user sees it: relit, refocused, in linear sRGB.
 cv::Mat adjusted_composite(const Analysis& analysis, const RenderSnapshot& render, const Adjustment& adjustment);
+// adjusted_composite at the still's own size when it was worked reduced (its
+// change carried up onto the full still, working_size.h), else the same.
+cv::Mat exported_composite(const Analysis& analysis, const RenderSnapshot& render, const Adjustment& adjustment);
 
 }  // namespace propcam::firmware

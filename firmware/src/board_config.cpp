@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "propcam/capture/frame.h"
+#include "propcam/inference/infer.h"
 
 namespace propcam::firmware {
 namespace fs = std::filesystem;
@@ -400,6 +401,27 @@ StorageConfig read_storage(const Checker& c, const json& root) {
   return s;
 }
 
+// Optional; each field defaults to job_budget.h's. The working size must fit
+// the memory budget with the still held at its full size.
+JobBudget read_budgets(const Checker& c, const json& root, const CameraConfig& camera) {
+  JobBudget b;
+  if (!root.contains("budgets")) return b;
+  const std::string ptr = "/budgets";
+  const json& j = c.object(root, "", "budgets");
+  c.only_fields(j, ptr, {"working_size", "memory_mb", "render_seconds"});
+  if (j.contains("working_size")) {
+    const Size s = c.size(j, ptr, "working_size", inference::kMinPhotoSide, kMaxWorkingSide);
+    b.working_pixels = static_cast<long>(s.width) * s.height;
+  }
+  if (j.contains("memory_mb"))
+    b.memory_mb = static_cast<long>(c.integer(j.at("memory_mb"), ptr + "/memory_mb", kMinMemoryBudgetMb, kMaxMemoryBudgetMb));
+  if (j.contains("render_seconds")) b.render_seconds = c.positive_number(j, ptr, "render_seconds", kMaxRenderSeconds);
+  const long still_pixels = static_cast<long>(camera.still_size.width) * camera.still_size.height;
+  if (const std::string problem = memory_budget_problem(b, still_pixels); !problem.empty())
+    c.fail(j.contains("working_size") ? ptr + "/working_size" : ptr + "/memory_mb", problem);
+  return b;
+}
+
 json parse_file(const fs::path& file) {
   std::error_code ec;
   if (!fs::is_regular_file(file, ec)) throw BoardConfigError(file, "", "no such board file");
@@ -440,7 +462,8 @@ BoardConfig load_board_file(const fs::path& board_json) {
   const json root = parse_file(file);
   Checker c(file, file.parent_path());
   if (!root.is_object()) c.fail("", std::string("must be a JSON object, not ") + type_name(root));
-  c.only_fields(root, "", {"name", "description", "buttons", "display", "camera", "camera_mount_height_m", "storage"});
+  c.only_fields(root, "",
+                {"name", "description", "buttons", "display", "camera", "camera_mount_height_m", "storage", "budgets"});
 
   BoardConfig b;
   b.file = file;
@@ -454,6 +477,7 @@ BoardConfig load_board_file(const fs::path& board_json) {
   b.camera = read_camera(c, root);
   b.camera_mount_height_m = c.positive_number(root, "", "camera_mount_height_m", 10.0);
   b.storage = read_storage(c, root);
+  b.budgets = read_budgets(c, root, b.camera);
   return b;
 }
 

@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "job_budget.h"
 #include "propcam/ui_fb/buttons.h"
 
 namespace propcam::firmware {
@@ -109,6 +110,7 @@ struct BoardConfig {
   CameraConfig camera;
   double camera_mount_height_m = 0.0;  // lens above the floor, for the inference's scale
   StorageConfig storage;
+  JobBudget budgets;  // "budgets", optional: the working size, memory and render seconds of a shot
 };
 
 // The boards under board_root (folders holding a board.json), sorted by name.

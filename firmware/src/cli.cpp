@@ -123,16 +123,24 @@ inference::SceneModel infer_with_progress(const cv::Mat& photo, const std::strin
 }
 
 // A photo larger than the working size (`--working-size`, a pixel budget
-// given as WxH) is inferred and rendered reduced to it (working_size.h).
-long working_pixels_of(const std::string& text) {
-  int w = 0, h = 0;
-  constexpr int kMaxWorkingSide = 16384;
-  if (!parse_pair(text, w, h, 'x') || w < inference::kMinPhotoSide || h < inference::kMinPhotoSide ||
-      w > kMaxWorkingSide || h > kMaxWorkingSide)
-    throw std::invalid_argument("--working-size expects WxH with each side in " +
-                                std::to_string(inference::kMinPhotoSide) + ".." + std::to_string(kMaxWorkingSide) +
-                                ", got '" + text + "'");
-  return static_cast<long>(w) * h;
+// given as WxH) is inferred and rendered reduced to it (working_size.h); the
+// working size must fit `--memory-budget` (job_budget.h).
+firmware::JobBudget job_budget_of(const std::string& working_size, long memory_mb, double render_seconds = 0) {
+  firmware::JobBudget budget;
+  budget.working_pixels = firmware::parse_working_size(working_size, "--working-size");
+  budget.memory_mb = memory_mb;
+  budget.render_seconds = render_seconds;
+  const std::string problem = firmware::memory_budget_problem(budget);
+  if (!problem.empty()) throw std::invalid_argument("--working-size " + working_size + ": " + problem + " (--memory-budget)");
+  return budget;
+}
+
+constexpr inference::PhysicalRange kTimeBudgetRange{0.01, firmware::kMaxRenderSeconds, "s"};
+
+void add_memory_budget_option(CLI::App& command, long& memory_mb) {
+  command.add_option("--memory-budget", memory_mb, "Megabytes a job may use at its peak; the working size must fit them")
+      ->capture_default_str()
+      ->check(CLI::Range(firmware::kMinMemoryBudgetMb, firmware::kMaxMemoryBudgetMb));
 }
 
 // The photo at its working size, with the progress lines a user sees.
@@ -151,6 +159,7 @@ json size_json(const cv::Mat& m) { return json::array({m.cols, m.rows}); }
 
 struct InferArgs {
   std::string photo, out, lines_csv, size, working_size = "1024x768";
+  long memory_mb = firmware::kDefaultMemoryBudgetMb;
   double camera_height = 1.5;
   LensPrior lens;
   bool json_out = false;
@@ -177,7 +186,8 @@ int cmd_infer(const InferArgs& a) {
   }
   if (a.photo.empty()) throw std::invalid_argument("infer needs a PHOTO (or --lines FILE --size WxH)");
   if (a.out.empty()) throw std::invalid_argument("infer needs -o SCENE_DIR");
-  const firmware::WorkingPhoto photo = load_photo_for_work(a.photo, working_pixels_of(a.working_size), progress);
+  const firmware::WorkingPhoto photo =
+      load_photo_for_work(a.photo, job_budget_of(a.working_size, a.memory_mb).working_pixels, progress);
   inference::SceneModel scene =
       infer_with_progress(photo.working, a.photo, a.camera_height, a.lens, progress, photo.scale());
   inference::save_scene(scene, a.out);
@@ -210,6 +220,8 @@ int renderer_bounces(int cli_bounces) {
 
 struct CompositeArgs {
   std::string photo, scene_dir, prop, at, out, material, albedo, save_scene, working_size = "1024x768";
+  long memory_mb = firmware::kDefaultMemoryBudgetMb;
+  double time_budget = firmware::kDefaultRenderSeconds;
   double height = 0, yaw = 0, camera_height = 1.5;
   LensPrior lens;
   int spp = 16, bounces = kDefaultCliBounces;
@@ -304,6 +316,7 @@ int cmd_composite(const CompositeArgs& a) {
   MaterialOverride material;
   if (!a.material.empty()) material.type = a.material;
   if (!a.albedo.empty()) material.albedo = parse_rgb(a.albedo);
+  const firmware::JobBudget budget = job_budget_of(a.working_size, a.memory_mb, a.time_budget);
   const render::Mesh prop = load_prop(a.prop, material);
   placement.height_m = a.height > 0 ? a.height : natural_height(a.prop, prop);
   placement.yaw_deg = a.yaw;
@@ -312,6 +325,11 @@ int cmd_composite(const CompositeArgs& a) {
   firmware::WorkingPhoto loaded;
   if (!a.scene_dir.empty()) {
     scene = inference::load_scene(a.scene_dir);
+    firmware::JobBudget at_scene_size = budget;
+    at_scene_size.working_pixels = static_cast<long>(scene.width) * scene.height;
+    if (const std::string problem = firmware::memory_budget_problem(at_scene_size); !problem.empty())
+      throw std::invalid_argument("the scene folder '" + a.scene_dir + "' is " + std::to_string(scene.width) + "x" +
+                                  std::to_string(scene.height) + ": " + problem + " (--memory-budget)");
     if (scene.depth.empty())
       throw std::invalid_argument("the scene folder '" + a.scene_dir + "' has no depth.exr: make it again with " +
                                   "`propcam infer PHOTO -o " + a.scene_dir + "`");
@@ -323,7 +341,7 @@ int cmd_composite(const CompositeArgs& a) {
                                   " photo; this photo is " + std::to_string(loaded.full_size.width) + "x" +
                                   std::to_string(loaded.full_size.height));
   } else {
-    loaded = load_photo_for_work(a.photo, working_pixels_of(a.working_size), progress);
+    loaded = load_photo_for_work(a.photo, budget.working_pixels, progress);
   }
   const cv::Mat& photo = loaded.working;
   placement.pixel_u *= static_cast<double>(photo.cols) / loaded.full_size.width;
@@ -346,6 +364,7 @@ int cmd_composite(const CompositeArgs& a) {
   options.match_camera = !a.no_camera_match;
   options.camera_match.seed = a.seed;
   options.light_layers = !a.light_scale.empty();
+  options.time_budget_seconds = budget.render_seconds;
   options.scene_layers_width = a.relight_scene && !a.light_scale.empty() ? kSceneLayerWidth : 0;
   // Light is added in the photo's own linear space: its camera response
   // (fitted with the light intensities) undone, and redone at the end.
@@ -391,7 +410,8 @@ int cmd_composite(const CompositeArgs& a) {
                   {"height_m", placement.height_m},
                   {"render_seconds", st.seconds},
                   {"scene_build_seconds", result.scene_build_seconds},
-                  {"samples_per_pixel", a.spp},
+                  {"samples_per_pixel", result.samples_per_pixel},
+                  {"time_budget", {{"seconds", budget.render_seconds}, {"stopped_render", result.stopped_by_time_budget}}},
                   {"rays", st.rays},
                   {"samples_untouched_by_prop", skipped},
                   {"denoise", {{"on", !a.no_denoise},
@@ -408,9 +428,13 @@ int cmd_composite(const CompositeArgs& a) {
                   {"total_seconds", progress.elapsed()}};
   if (a.json_out) std::cout << summary.dump(2) << std::endl;
   else {
-    if (!Progress::all_silenced())
+    if (!Progress::all_silenced()) {
       std::fprintf(stderr, "render %.2fs, %.1f Mrays, %.0f%% of traced samples untouched by the prop (no second path)\n",
                    st.seconds, st.rays / 1e6, 100.0 * skipped);
+      if (result.stopped_by_time_budget)
+        std::fprintf(stderr, "render stopped at %d of %d spp: the next pass would have ended after the time budget "
+                     "of %g s (--time-budget)\n", result.samples_per_pixel, a.spp, budget.render_seconds);
+    }
     if (a.explain) {
       print_render_plan(plan);
       if (result.camera_match.steps.empty()) std::fprintf(stderr, "camera: match off (--no-camera-match)\n");
@@ -688,6 +712,7 @@ int run_cli(int argc, char** argv) {
   infer->add_option("--working-size", infer_args.working_size,
                     "A larger photo is inferred reduced to this many pixels (WxH), its aspect kept")
       ->capture_default_str();
+  add_memory_budget_option(*infer, infer_args.memory_mb);
   infer->add_flag("--json", infer_args.json_out, "Machine-readable output on stdout");
 
   CompositeArgs comp;
@@ -717,6 +742,12 @@ int run_cli(int argc, char** argv) {
                         "A larger photo is inferred and rendered reduced to this many pixels (WxH) and the "
                         "composite delivered at the photo's size")
       ->capture_default_str();
+  add_memory_budget_option(*composite, comp.memory_mb);
+  composite->add_option("--time-budget", comp.time_budget,
+                        "Seconds the render may take: no pass starts that would end after them (the samples "
+                        "reached are reported)")
+      ->capture_default_str()
+      ->check(within(kTimeBudgetRange));
   composite->add_option("--save-scene", comp.save_scene, "Also write the inferred scene folder here");
   composite->add_option("-o,--output", comp.out, "Composite image to write (PNG, JPEG or EXR)")->required();
   composite->add_flag("--json", comp.json_out, "Machine-readable summary on stdout");

@@ -138,10 +138,16 @@ CompositeResult composite_prop(const cv::Mat& photo_linear, const inference::Sce
   session_settings.denoise = options.denoise;
   render::RenderSession session(world, camera, result.plan.lights, photo_linear, w.prop_bounds, session_settings);
   while (!session.finished()) {
+    if (!result.passes.empty() && options.time_budget_seconds > 0 &&
+        result.passes.back().total_seconds + session.predicted_next_pass_seconds() > options.time_budget_seconds) {
+      result.stopped_by_time_budget = true;
+      break;
+    }
     result.passes.push_back(session.run_pass());
     if (settings.progress) settings.progress(static_cast<double>(result.passes.back().max_samples) / settings.samples_per_pixel);
     if (options.on_pass) options.on_pass(session, result.passes.back());
   }
+  result.samples_per_pixel = result.passes.empty() ? 0 : result.passes.back().max_samples;
   result.render = options.denoise ? session.denoised(&result.denoise) : session.differential();
   result.composite_linear = render::composite_differential(photo_linear, result.render);
   if (options.match_camera)

@@ -67,6 +67,9 @@ struct CompositeOptions {
   bool cull_tiles = true;               // skip tiles the prop cannot affect
   render::PlanOptions plan;             // which transport to skip (plan.allow_skips = false: simulate everything)
   double target_relative_error = 0.0;   // stop tiles early at this error (0: run to --spp)
+  // > 0: no pass starts that would end after this many seconds of rendering
+  // (predicted from the last pass's time per sample); the first always runs.
+  double time_budget_seconds = 0.0;
   bool light_layers = false;            // keep the change split by light (relighting)
   int scene_layers_width = 0;           // > 0: also per-light renders of the empty scene this wide
   // Filter the prop's change where the half buffers say it lowers the error
@@ -88,6 +91,8 @@ struct CompositeResult {
   render::PlacedProp placed;
   double scene_build_seconds = 0.0;
   std::vector<render::PassReport> passes;
+  int samples_per_pixel = 0;            // reached (below the settings' when the time budget stopped the render)
+  bool stopped_by_time_budget = false;
   std::vector<render::TileStatus> tiles;
   render::PropReach reach;
   render::TransportPlan plan;

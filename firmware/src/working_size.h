@@ -15,11 +15,9 @@
 #include <string>
 #include <vector>
 
-namespace propcam::firmware {
+#include "job_budget.h"
 
-// About 0.8 megapixels (1024x768): inference's figures and its ≤ 3 s are
-// measured at this size, and a 12 MP photo's working copy costs 9 MB.
-inline constexpr long kDefaultWorkingPixels = 1024L * 768L;
+namespace propcam::firmware {
 
 // The largest photo taken: a 200-megapixel phone sensor's. Reading one costs
 // a band of rows in memory, but its decoding time grows with it.

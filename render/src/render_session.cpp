@@ -113,6 +113,7 @@ PassReport RenderSession::run_pass(const std::atomic<bool>* cancel) {
   for (int i = 0; i < static_cast<int>(tiles_.size()); ++i)
     if (!tiles_[i].done) work.push_back(i);
   std::atomic<int> next{0}, traced{0};
+  std::atomic<long long> pixel_samples{0};
   std::atomic<bool> stopped{false};
   auto worker = [&] {
     for (int k; (k = next.fetch_add(1)) < static_cast<int>(work.size());) {
@@ -121,10 +122,10 @@ PassReport RenderSession::run_pass(const std::atomic<bool>* cancel) {
         return;
       }
       TileStatus& t = tiles_[work[k]];
-      // 0 -> 1 -> 2 -> 4 -> 8 -> 16 -> 24 -> 36 ..., capped at the limit.
-      const int count = std::min(samples_in_next_pass(t.samples), settings_.max_samples_per_pixel - t.samples);
+      const int count = samples_to_add(t);
       render_tile(work[k], t.samples, count);
       ++traced;
+      pixel_samples += static_cast<long long>(t.rect.area()) * count;
     }
   };
   int threads = settings_.render.threads > 0 ? settings_.render.threads : static_cast<int>(std::thread::hardware_concurrency());
@@ -147,7 +148,22 @@ PassReport RenderSession::run_pass(const std::atomic<bool>* cancel) {
   report.pass_seconds = seconds_since(start);
   total_seconds_ += report.pass_seconds;
   report.total_seconds = total_seconds_;
+  last_pass_seconds_ = report.pass_seconds;
+  last_pass_pixel_samples_ = pixel_samples;
   return report;
+}
+
+int RenderSession::samples_to_add(const TileStatus& t) const {
+  // 0 -> 1 -> 2 -> 4 -> 8 -> 16 -> 24 -> 36 ..., capped at the limit.
+  return std::min(samples_in_next_pass(t.samples), settings_.max_samples_per_pixel - t.samples);
+}
+
+double RenderSession::predicted_next_pass_seconds() const {
+  if (passes_ == 0 || last_pass_pixel_samples_ <= 0) return 0.0;
+  long long next_pixel_samples = 0;
+  for (const TileStatus& t : tiles_)
+    if (!t.done) next_pixel_samples += static_cast<long long>(t.rect.area()) * samples_to_add(t);
+  return last_pass_seconds_ * static_cast<double>(next_pixel_samples) / static_cast<double>(last_pass_pixel_samples_);
 }
 
 DifferentialRender RenderSession::differential() const {

@@ -197,6 +197,68 @@ TEST_F(ApplianceShotTest, RenderConvergesAndRelightsWithoutRerendering) {
   EXPECT_FALSE(cv::norm(soft, plain, cv::NORM_INF) == 0.0);
 }
 
+TEST_F(ApplianceShotTest, ARenderOutOfTimeEndsAfterItsFirstPass) {
+  const auto spots = find_spots(analysis().scene, 12);
+  ASSERT_FALSE(spots.empty());
+  CompositeRender render(*analysis_, preset("cube"), spots.front(), tier_spec(appliance::Tier::Final), 2, 1e-9);
+  EXPECT_FALSE(render.finished()) << "the first pass always runs";
+  std::atomic<bool> cancel{false};
+  EXPECT_TRUE(render.run_pass(&cancel));
+  EXPECT_TRUE(render.finished());
+  EXPECT_FALSE(render.run_pass(&cancel));
+  const auto done = render.snapshot(true);
+  EXPECT_TRUE(done->finished);
+  EXPECT_TRUE(done->stopped_by_time_budget);
+  EXPECT_EQ(done->samples_per_pixel, 1);
+  EXPECT_LT(done->converged_fraction, 1.0);
+}
+
+// The still at twice the working size: the render runs at the working size
+// and the export carries it up, the far corner the still's own.
+TEST_F(ApplianceShotTest, AStillLargerThanTheWorkingSizeIsExportedAtItsOwnSize) {
+  auto reduced = std::make_shared<Analysis>(analysis());
+  cv::resize(analysis().photo_linear, reduced->full_photo_linear, {320, 240}, 0, 0, cv::INTER_CUBIC);
+  reduced->full_photo_linear = cv::max(reduced->full_photo_linear, 0.f);
+  const auto spots = find_spots(reduced->scene, 12);
+  ASSERT_FALSE(spots.empty());
+  CompositeRender render(reduced, preset("cube"), spots.front(), tier_spec(appliance::Tier::Draft), 2);
+  std::atomic<bool> cancel{false};
+  for (int passes = 0; !render.finished() && passes < 20; ++passes) render.run_pass(&cancel);
+  const auto done = render.snapshot(true);
+  const cv::Mat exported = exported_composite(*reduced, *done, Adjustment{});
+  ASSERT_EQ(exported.size(), cv::Size(320, 240));
+  ASSERT_TRUE(cv::checkRange(exported));
+  const cv::Rect corner(0, 0, 24, 16);
+  // As exported (8-bit): the screen's composite goes through the camera
+  // response and back, which moves floats by 1e-7.
+  EXPECT_EQ(cv::norm(capture::linear_to_srgb8(exported(corner)),
+                     capture::linear_to_srgb8(reduced->full_photo_linear(corner)), cv::NORM_INF),
+            0.0);
+  const cv::Point base(static_cast<int>(2 * spots.front().pixel.x), static_cast<int>(2 * spots.front().pixel.y));
+  const cv::Rect near_base = cv::Rect(base.x - 8, base.y - 20, 16, 20) & cv::Rect(0, 0, 320, 240);
+  EXPECT_GT(cv::norm(exported(near_base), reduced->full_photo_linear(near_base), cv::NORM_L1) / near_base.area(), 0.01)
+      << "the cube stands in the full-size export";
+  EXPECT_EQ(adjusted_composite(*reduced, *done, Adjustment{}).size(), cv::Size(160, 120)) << "the screen's is working size";
+}
+
+TEST(AnalyseStill, AStillLargerThanTheWorkingSizeIsInferredReduced) {
+  render::SyntheticRoomSpec spec;
+  spec.width = 320;
+  spec.height = 240;
+  spec.seed = 5;
+  render::RenderSettings settings;
+  settings.samples_per_pixel = 4;
+  const SyntheticShot shot = shoot_synthetic_room(spec, settings);
+  const Analysis a = analyse_still(shot.photo_linear, capture::linear_to_srgb8(shot.photo_linear), 1.5, 160 * 120,
+                                   [](const std::string&) {});
+  EXPECT_EQ(a.photo_linear.size(), cv::Size(160, 120));
+  EXPECT_EQ(a.photo_rgb8.size(), cv::Size(160, 120));
+  EXPECT_EQ(a.scene_photo.size(), cv::Size(160, 120));
+  EXPECT_EQ(a.full_photo_linear.size(), cv::Size(320, 240));
+  EXPECT_EQ(a.scene.width, 160);
+  EXPECT_EQ(a.scene.height, 120);
+}
+
 TEST_F(ApplianceShotTest, SliderStepsMapToUnitsAndBack) {
   std::array<int, appliance::kRelightParamCount> steps{};
   steps[static_cast<size_t>(appliance::RelightParam::SceneLight)] = 4;

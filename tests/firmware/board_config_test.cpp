@@ -38,6 +38,8 @@ TEST(BoardConfig, RaspberryPiBoard) {
   EXPECT_DOUBLE_EQ(b.camera_mount_height_m, 1.4);
   EXPECT_EQ(b.storage.usb.kind, StorageLocation::Kind::Auto);
   EXPECT_EQ(b.storage.spool_dir.path, "/var/spool/propcam");
+  EXPECT_EQ(b.budgets.working_pixels, 1024L * 768L);
+  EXPECT_EQ(b.budgets.memory_mb, 768);
 }
 
 TEST(BoardConfig, QemuBoard) {
@@ -163,6 +165,16 @@ TEST_F(BoardFiles, ValidVariantsLoad) {
   json drm = gpiod_board();
   drm["display"] = json::parse(R"({"backend": "drm", "card": "/dev/dri/card1"})");
   EXPECT_EQ(load_board_file(write(drm)).display.device, "/dev/dri/card1");
+  // Budgets default when absent and are read when given.
+  EXPECT_EQ(g.budgets.working_pixels, kDefaultWorkingPixels);
+  EXPECT_EQ(g.budgets.memory_mb, kDefaultMemoryBudgetMb);
+  EXPECT_EQ(g.budgets.render_seconds, kDefaultRenderSeconds);
+  json budgeted = gpiod_board();
+  budgeted["budgets"] = json::parse(R"({"working_size": "1600x1200", "memory_mb": 1024, "render_seconds": 30})");
+  const BoardConfig b = load_board_file(write(budgeted));
+  EXPECT_EQ(b.budgets.working_pixels, 1600L * 1200L);
+  EXPECT_EQ(b.budgets.memory_mb, 1024);
+  EXPECT_EQ(b.budgets.render_seconds, 30.0);
   // load_board finds files written under the root too.
   EXPECT_EQ(list_boards(root_), std::vector<std::string>{"b"});
   EXPECT_EQ(load_board(root_, "b").name, "b");
@@ -258,6 +270,15 @@ std::vector<BadCase> bad_cases() {
       {"absolute with dots", G, set_to("/storage/usb", "/media/../etc"), "/storage/usb", "must not contain \"..\""},
       {"control character", G, set_to("/storage/usb", "/media/a\nb"), "/storage/usb", "control characters"},
       {"missing storage usb", G, without("/storage/usb"), "/storage/usb", "missing"},
+      {"unknown budget", G, set_to("/budgets/seconds", 10), "/budgets/seconds", "unknown field"},
+      {"working size text", G, set_to("/budgets/working_size", "big"), "/budgets/working_size", "must be WIDTHxHEIGHT"},
+      {"memory a fraction", G, set_to("/budgets/memory_mb", 512.5), "/budgets/memory_mb", "must be an integer"},
+      {"memory tiny", G, set_to("/budgets/memory_mb", 64), "/budgets/memory_mb", "out of range [256, 1048576]"},
+      {"render seconds zero", G, set_to("/budgets/render_seconds", 0), "/budgets/render_seconds", "out of range (0, 86400]"},
+      {"working size over memory", G, set_to("/budgets", json{{"working_size", "2048x1536"}}), "/budgets/working_size",
+       "over the memory budget of 512 MB"},
+      {"memory under the default size", G, set_to("/budgets", json{{"memory_mb", 300}}), "/budgets/memory_mb",
+       "needs about 439 MB at its peak with the full-size photo held"},
   };
 }
 

@@ -164,7 +164,8 @@ TEST(Cli, NumbersOutsideTheirPhysicalRangeAreRefusedNamingTheRange) {
   const std::string out = temp("range.png");
   for (const std::string& bad : {"--height 0", "--height -1", "--height nan", "--aperture nan", "--yaw nan",
                                  "--focal 1e-300", "--camera-height 0", "--camera-height -1.5", "--spp 0",
-                                 "--albedo 1e30,0.5,0.5"}) {
+                                 "--albedo 1e30,0.5,0.5", "--time-budget 0", "--time-budget nan",
+                                 "--memory-budget 10"}) {
     const CliRun r = propcam("composite " + fixture_photo() + " --prop vase --at 80,95 " + bad + " -o " + out);
     EXPECT_EQ(r.exit_code, 2) << bad << ": " << r.out;
     const std::string option = bad.substr(0, bad.find(' '));
@@ -248,6 +249,8 @@ TEST(Cli, ALargerPhotoIsWorkedReducedAndDeliveredAtItsSize) {
   j = json_tail(r.out);
   EXPECT_EQ(j["working_size"], json::array({80, 60}));
   EXPECT_EQ(j["output_size"], json::array({160, 120}));
+  EXPECT_EQ(j["samples_per_pixel"], 2);
+  EXPECT_EQ(j["time_budget"]["stopped_render"], false);
   const cv::Mat photo = propcam::capture::load_photo_linear(fixture_photo());
   const cv::Mat composite = propcam::capture::load_photo_linear(out);
   ASSERT_EQ(composite.size(), photo.size());
@@ -274,6 +277,22 @@ TEST(Cli, ALargerPhotoIsWorkedReducedAndDeliveredAtItsSize) {
   EXPECT_EQ(r.exit_code, 2) << r.out;
   EXPECT_NE(r.out.find("80x60"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("120x120"), std::string::npos) << r.out;
+}
+
+// The working size is checked against the memory budget before the photo is read.
+TEST(Cli, AWorkingSizeOverTheMemoryBudgetIsRefusedUpFront) {
+  const std::string scene = temp("scene_over_budget");
+  fs::remove_all(scene);
+  CliRun r = propcam("infer " + fixture_photo() + " --working-size 4000x3000 -o " + scene);
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_NE(r.out.find("--working-size 4000x3000: a working size of 12.00 megapixels"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("over the memory budget of 512 MB"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("(--memory-budget)"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(scene));
+  // With the budget raised, the same size is taken (the photo is smaller, so it is worked as it is).
+  r = propcam("infer " + fixture_photo() + " --working-size 4000x3000 --memory-budget 8192 --json -o " + scene);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_EQ(json_tail(r.out)["working_size"], json::array({160, 120}));
 }
 
 TEST(Cli, VersionNamesTheProgramAndItsVersion) {

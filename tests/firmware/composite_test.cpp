@@ -186,6 +186,25 @@ TEST_F(CompositeTest, SameSeedSameComposite) {
   EXPECT_EQ(cv::norm(a.composite_linear, b.composite_linear, cv::NORM_INF), 0.0);
 }
 
+TEST_F(CompositeTest, ATimeBudgetStopsTheRenderBetweenPassesAndSaysSo) {
+  render::RenderSettings s;
+  s.samples_per_pixel = 64;
+  CompositeOptions within_budget;
+  within_budget.time_budget_seconds = 1e-9;  // spent by the first pass, which always runs
+  const CompositeResult stopped =
+      composite_prop(shot_->photo_linear, shot_->truth, load_prop("cube"), at_free_floor(0.3), s, within_budget);
+  EXPECT_TRUE(stopped.stopped_by_time_budget);
+  ASSERT_EQ(stopped.passes.size(), 1u);
+  EXPECT_EQ(stopped.samples_per_pixel, 1);
+  EXPECT_TRUE(cv::checkRange(stopped.composite_linear));
+
+  s.samples_per_pixel = 4;
+  const CompositeResult unbounded = composite_prop(shot_->photo_linear, shot_->truth, load_prop("cube"),
+                                                   at_free_floor(0.3), s);
+  EXPECT_FALSE(unbounded.stopped_by_time_budget);
+  EXPECT_EQ(unbounded.samples_per_pixel, 4);
+}
+
 TEST_F(CompositeTest, PlacementOutsideThePhotoOrOnAWallIsAClearError) {
   render::RenderSettings s;
   s.samples_per_pixel = 1;

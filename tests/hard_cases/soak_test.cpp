@@ -162,7 +162,7 @@ TEST(Soak, TwoHundredShootInferPlaceRenderExportCycles) {
     ASSERT_EQ(still->error, "");
     ASSERT_EQ(still->linear.size(), cv::Size(kWidth, kHeight));
     // Infer.
-    auto analysis = std::make_shared<Analysis>(analyse_still(still->linear, still->rgb8, 1.5, [](const std::string&) {}));
+    auto analysis = std::make_shared<Analysis>(analyse_still(still->linear, still->rgb8, 1.5, kDefaultWorkingPixels, [](const std::string&) {}));
     // Place: a different spot and prop each cycle.
     const std::vector<Spot> spots = find_spots(analysis->scene, 12);
     ASSERT_FALSE(spots.empty()) << "the living room's floor is in view";

@@ -74,6 +74,9 @@ class RenderSession {
   // it finished, and the next call resumes where it stopped.
   PassReport run_pass(const std::atomic<bool>* cancel = nullptr);
   bool finished() const;
+  // The next pass's seconds, from the last pass's time per pixel-sample and
+  // the pixel-samples the next one adds (0 before the first pass).
+  double predicted_next_pass_seconds() const;
 
   cv::Mat composite() const;            // CV_32FC3 linear, the photo's size (denoised if settings.denoise)
   DifferentialRender differential() const;
@@ -92,6 +95,7 @@ class RenderSession {
 
  private:
   void render_tile(int index, int first_sample, int count);
+  int samples_to_add(const TileStatus& t) const;  // by the next pass
   // Calls f(x, y, pixel) for every pixel with samples, tile by tile.
   template <typename F>
   void for_each_traced_pixel(const F& f) const {
@@ -116,6 +120,8 @@ class RenderSession {
   mutable DenoiseGuides guides_;
   int passes_ = 0;
   double total_seconds_ = 0.0;
+  double last_pass_seconds_ = 0.0;
+  long long last_pass_pixel_samples_ = 0;
 };
 
 }  // namespace propcam::render
