@@ -486,6 +486,12 @@ std::shared_ptr<const RenderSnapshot> CompositeRender::snapshot(bool final_layer
     s->depth = world_.depth.clone();
     const render::PrimaryBuffers primary = render::render_primary_buffers(*world_.scene, world_.camera, true);
     primary.depth.copyTo(s->depth, primary.prop_coverage);
+    if (!analysis_->full_photo_linear.empty()) {
+      const render::PhotoImaging& imaging = analysis_->scene.imaging;
+      s->full_size_coverage = full_size_prop_coverage(*world_.scene, world_.camera, s->layers.coverage,
+                                                      analysis_->full_photo_linear.size(),
+                                                      imaging.blur_measured ? imaging.blur_sigma_px : 0.0);
+    }
   }
   return s;
 }
@@ -556,7 +562,10 @@ cv::Mat exported_composite(const Analysis& analysis, const RenderSnapshot& rende
   const cv::Mat coverage = render.layers.coverage.empty() ? cv::Mat(working.size(), CV_32F, cv::Scalar(0))
                                                           : render.layers.coverage;
   cv::Mat full = analysis.full_photo_linear.clone();
-  deliver_at_full_size(full, analysis.photo_linear, working, coverage);
+  FullSizeDelivery delivery(analysis.photo_linear, working, coverage, full.size());
+  // Depth of field blurs the prop's edges anyway.
+  if (adjustment.aperture_m <= 0) delivery.use_sharp_coverage(render.full_size_coverage);
+  delivery.apply(full, 0);
   return full;
 }
 

@@ -154,6 +154,7 @@ struct RenderSnapshot {
   // Filled when the render ends (converged or stopped): for relighting and depth of field.
   render::LightLayers layers;
   cv::Mat depth;
+  SharpCoverage full_size_coverage;  // the prop at the still's size, when it was worked reduced
   double prop_distance_m = 2.0;
   cv::Point2d base_pixel;  // where the prop stands (the spot, or a level pixel beside it)
 };

@@ -365,6 +365,8 @@ int cmd_composite(const CompositeArgs& a) {
   options.camera_match.seed = a.seed;
   options.light_layers = !a.light_scale.empty();
   options.time_budget_seconds = budget.render_seconds;
+  // The prop's edges at the photo's own size, unless depth of field blurs them anyway.
+  if (loaded.reduced() && a.aperture <= 0) options.full_size = loaded.full_size;
   options.scene_layers_width = a.relight_scene && !a.light_scale.empty() ? kSceneLayerWidth : 0;
   // Light is added in the photo's own linear space: its camera response
   // (fitted with the light intensities) undone, and redone at the end.
@@ -395,7 +397,8 @@ int cmd_composite(const CompositeArgs& a) {
     // The composite at the photo's own size: the working composite's change
     // carried up onto the full photo, in the same response-linear space.
     progress.stage("composite at " + std::to_string(output_size.width) + "x" + std::to_string(output_size.height));
-    const firmware::FullSizeDelivery delivery(scene_photo, final_image, result.render.coverage, output_size);
+    firmware::FullSizeDelivery delivery(scene_photo, final_image, result.render.coverage, output_size);
+    delivery.use_sharp_coverage(result.full_size_coverage);
     firmware::write_full_size_composite(loaded, a.out, delivery, scene.gamma);
   } else {
     capture::write_image(a.out, capture::response_linear_to_srgb_linear(final_image, scene.gamma));
@@ -425,6 +428,11 @@ int cmd_composite(const CompositeArgs& a) {
                                             {"pixels", result.flattening.pixels_changed},
                                             {"why", result.flattening.why}}},
                   {"depth_of_field", dof_json},
+                  {"full_size_edges", {{"pixels", result.full_size_coverage.region.area()},
+                                       {"rays_per_pixel", result.full_size_coverage.empty()
+                                                              ? 0 : firmware::kSharpCoverageRaysPerSide *
+                                                                        firmware::kSharpCoverageRaysPerSide},
+                                       {"seconds", result.full_size_coverage.seconds}}},
                   {"total_seconds", progress.elapsed()}};
   if (a.json_out) std::cout << summary.dump(2) << std::endl;
   else {

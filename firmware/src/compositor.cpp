@@ -153,6 +153,9 @@ CompositeResult composite_prop(const cv::Mat& photo_linear, const inference::Sce
   if (options.match_camera)
     result.composite_linear = render::match_camera(photo_linear, result.composite_linear, result.render.coverage,
                                                    scene.imaging, options.camera_match, scene.gamma, &result.camera_match);
+  if (options.full_size.width > photo_linear.cols)
+    result.full_size_coverage = full_size_prop_coverage(world, camera, result.render.coverage, options.full_size,
+                                                        result.camera_match.blur_sigma_px);
   result.tiles = session.tiles();
   result.reach = session.reach();
   if (session_settings.render.light_layers)

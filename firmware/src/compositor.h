@@ -15,6 +15,7 @@
 #include "propcam/render/placement.h"
 #include "propcam/render/render_session.h"
 #include "propcam/render/transport_plan.h"
+#include "working_size.h"
 
 namespace propcam::firmware {
 
@@ -79,6 +80,9 @@ struct CompositeOptions {
   // estimate says the photo has them (render/photo_imaging.h).
   bool match_camera = true;
   render::CameraMatchOptions camera_match;
+  // Larger than the photo: also the prop's coverage at this size, for
+  // delivering the composite there with sharp edges (working_size.h).
+  cv::Size full_size;
   // Called after each progressive pass with the session (snapshot, tiles, errors).
   std::function<void(const render::RenderSession&, const render::PassReport&)> on_pass;
 };
@@ -100,6 +104,7 @@ struct CompositeResult {
   render::SceneLightLayers scene_layers;   // with options.scene_layers_width > 0
   inference::InsertionFlattening flattening;  // the insertion constraint around the prop's base
   cv::Mat depth;  // CV_32F metres along camera z of what each pixel sees, the prop included (for depth of field)
+  SharpCoverage full_size_coverage;  // with options.full_size
 };
 
 CompositeResult composite_prop(const cv::Mat& photo_linear, const inference::SceneModel& scene,

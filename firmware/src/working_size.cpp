@@ -1,11 +1,13 @@
 #include "working_size.h"
 
 #include "propcam/capture/image_file.h"
+#include "propcam/render/path_tracer.h"
 
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
 #include <array>
+#include <chrono>
 #include <cmath>
 #include <stdexcept>
 
@@ -17,12 +19,17 @@ namespace {
 constexpr float kRatioFloor = 3e-5f;
 // A bounce of light onto a nearly black pixel cannot multiply it more than this.
 constexpr float kMaxRatio = 64.f;
-// Below this coverage the prop's colour is not solved from the pixel (noise
-// over a tiny share); it is taken from covered neighbours instead.
-constexpr float kMinCoverageForColour = 0.05f;
+// Below this coverage the prop's colour is not solved from the pixel (its
+// noise divided by a small share shows as a coloured fringe); it is taken
+// from covered neighbours instead.
+constexpr float kMinCoverageForColour = 0.5f;
 // Upsampling reads one working pixel around each full one; the fills reach
 // this many pixels beyond what is known.
 constexpr int kFillReach = 2;
+// The prop's colour is filled this many working pixels beyond its coverage.
+constexpr int kColourFillReach = 8;
+// A blur below this many full-size pixels is not worth a pass over the coverage.
+constexpr double kMinBlurSigma = 0.3;
 
 // Gives every unknown pixel of `values` (weight 0) the mean of its known
 // 3x3 neighbours, growing by one pixel per pass, for at most `passes` passes.
@@ -193,9 +200,14 @@ FullSizeDelivery::FullSizeDelivery(const cv::Mat& working_photo, const cv::Mat& 
       known[x] = 1.f;
     }
   }
-  if (!around.empty()) {
-    cv::Mat colour_around = colour(around), known_around = colour_known(around);
-    fill_unknown(colour_around, known_around, 2 * kFillReach);
+  // Further out for the colour: a sharp coverage blurred by the photo's
+  // blur reaches beyond what the working render covered.
+  const cv::Rect colour_around = (cv::boundingRect(covered) + cv::Size(2 * kColourFillReach, 2 * kColourFillReach) -
+                                  cv::Point(kColourFillReach, kColourFillReach)) &
+                                 cv::Rect(0, 0, ws.width, ws.height);
+  if (!colour_around.empty()) {
+    cv::Mat values = colour(colour_around), known = colour_known(colour_around);
+    fill_unknown(values, known, 2 * kColourFillReach);
   }
 
   // 4. The bilinear taps of every full column and row.
@@ -211,6 +223,38 @@ FullSizeDelivery::FullSizeDelivery(const cv::Mat& working_photo, const cv::Mat& 
   };
   xs_ = taps(full_size.width, ws.width);
   ys_ = taps(full_size.height, ws.height);
+}
+
+SharpCoverage full_size_prop_coverage(const render::Scene& world, const render::PinholeCamera& working_camera,
+                                      const cv::Mat& working_coverage, cv::Size full_size,
+                                      double blur_sigma_working_px) {
+  const auto start = std::chrono::steady_clock::now();
+  SharpCoverage sharp;
+  const cv::Rect seen = cv::boundingRect(working_coverage > 0.f);
+  if (seen.empty()) return sharp;
+  const double sx = static_cast<double>(full_size.width) / working_coverage.cols;
+  const double sy = static_cast<double>(full_size.height) / working_coverage.rows;
+  const double blur_sigma = std::max(0.0, blur_sigma_working_px) * sx;
+  // A working pixel beyond what it saw (a thin part its samples missed),
+  // and room for the blur's tail.
+  // (Within the reach of the prop's filled colour.)
+  const int margin = static_cast<int>(std::ceil(std::min(sx + 3.0 * blur_sigma, (kColourFillReach - 1) * sx))) + 1;
+  const cv::Rect scaled(static_cast<int>(std::floor(seen.x * sx)), static_cast<int>(std::floor(seen.y * sy)),
+                        static_cast<int>(std::ceil(seen.width * sx)), static_cast<int>(std::ceil(seen.height * sy)));
+  sharp.region = (scaled + cv::Size(2 * margin, 2 * margin) - cv::Point(margin, margin)) &
+                 cv::Rect(0, 0, full_size.width, full_size.height);
+  const render::PinholeCamera full_camera = working_camera.resized(full_size.width, full_size.height);
+  sharp.coverage = render::render_prop_coverage(world, full_camera, sharp.region, kSharpCoverageRaysPerSide);
+  if (blur_sigma > kMinBlurSigma) cv::GaussianBlur(sharp.coverage, sharp.coverage, cv::Size(), blur_sigma);
+  sharp.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return sharp;
+}
+
+void FullSizeDelivery::use_sharp_coverage(SharpCoverage sharp) {
+  if (!sharp.empty() && (sharp.coverage.type() != CV_32F || sharp.coverage.size() != sharp.region.size() ||
+                         (sharp.region & cv::Rect(0, 0, full_size_.width, full_size_.height)) != sharp.region))
+    throw std::invalid_argument("FullSizeDelivery: a sharp coverage is CV_32F, its region's size, within the full size");
+  sharp_ = std::move(sharp);
 }
 
 void FullSizeDelivery::apply(cv::Mat& rows, int first_row) const {
@@ -235,6 +279,8 @@ void FullSizeDelivery::apply(cv::Mat& rows, int first_row) const {
         r += w[i] * ratio_.at<cv::Vec3f>(at[i]);
         col += w[i] * colour_.at<cv::Vec3f>(at[i]);
       }
+      if (!sharp_.empty() && sharp_.region.contains({x, first_row + y}))
+        m = sharp_.coverage.at<float>(first_row + y - sharp_.region.y, x - sharp_.region.x);
       for (int k = 0; k < 3; ++k) out[x][k] = m * col[k] + (1.f - m) * out[x][k] * r[k];
     }
   }

@@ -16,6 +16,8 @@
 #include <vector>
 
 #include "job_budget.h"
+#include "propcam/render/camera.h"
+#include "propcam/render/scene.h"
 
 namespace propcam::firmware {
 
@@ -39,10 +41,33 @@ cv::Mat reduce_to(const cv::Mat& photo, cv::Size size);
 // space as the full rows), `working_composite` its composite, `coverage`
 // (CV_32F) the share of each working pixel the prop covers. Where the
 // composite equals the photo, the full rows are left exactly as they are.
+// The prop's silhouette at the full size: its coverage from camera rays at
+// that size (CV_32F) over `region`, the full-size pixels around where the
+// working render saw it.
+struct SharpCoverage {
+  cv::Rect region;
+  cv::Mat coverage;
+  double seconds = 0.0;  // to trace it
+  bool empty() const { return coverage.empty(); }
+};
+
+// Rays per side of a full-size pixel for its prop coverage (9 levels of edge).
+inline constexpr int kSharpCoverageRaysPerSide = 3;
+
+// `world` holds the placed prop, `working_camera` renders the working size.
+// The coverage is softened by the photo's blur, `blur_sigma_working_px` in
+// working pixels (scaled to the full size).
+SharpCoverage full_size_prop_coverage(const render::Scene& world, const render::PinholeCamera& working_camera,
+                                      const cv::Mat& working_coverage, cv::Size full_size,
+                                      double blur_sigma_working_px);
+
 class FullSizeDelivery {
  public:
   FullSizeDelivery(const cv::Mat& working_photo, const cv::Mat& working_composite, const cv::Mat& coverage,
                    cv::Size full_size);
+  // Inside its region the prop is blended by this coverage instead of the
+  // upsampled working one: its edges as sharp as the full size allows.
+  void use_sharp_coverage(SharpCoverage sharp);
   // Rows [first_row, first_row + rows.rows) of the full photo (CV_32FC3), in place.
   void apply(cv::Mat& rows, int first_row) const;
 
@@ -53,6 +78,7 @@ class FullSizeDelivery {
   };
   cv::Size full_size_;
   cv::Mat untouched_, ratio_, colour_, coverage_;
+  SharpCoverage sharp_;
   std::vector<Taps> xs_, ys_;
 };
 

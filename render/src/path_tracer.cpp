@@ -558,6 +558,44 @@ PrimaryBuffers render_primary_buffers(const Scene& scene, const PinholeCamera& c
   return out;
 }
 
+cv::Mat render_prop_coverage(const Scene& scene, const PinholeCamera& camera, const cv::Rect& region,
+                             int rays_per_side, int threads) {
+  if (rays_per_side < 1 || rays_per_side > 16)
+    throw std::invalid_argument("render_prop_coverage: rays_per_side must be in 1..16");
+  const cv::Rect r = region & cv::Rect(0, 0, camera.width, camera.height);
+  cv::Mat coverage(r.size(), CV_32F, cv::Scalar(0));
+  if (r.empty()) return coverage;
+  const Eigen::Vector3f origin = camera.center_world.cast<float>();
+  const float per_ray = 1.f / static_cast<float>(rays_per_side * rays_per_side);
+  std::atomic<int> next_row{0};
+  auto worker = [&] {
+    for (int row; (row = next_row.fetch_add(1)) < r.height;) {
+      float* out = coverage.ptr<float>(row);
+      for (int x = 0; x < r.width; ++x) {
+        int hits = 0;
+        for (int j = 0; j < rays_per_side; ++j)
+          for (int i = 0; i < rays_per_side; ++i) {
+            // Pixel centres are at integer coordinates (ray_direction).
+            const double u = r.x + x + (i + 0.5) / rays_per_side - 0.5;
+            const double v = r.y + row + (j + 0.5) / rays_per_side - 0.5;
+            const Eigen::Vector3f dir = camera.ray_direction(u, v).cast<float>();
+            RayHit hit;
+            hits += scene.intersect(origin, dir, kInfinity, true, hit) && scene.layer(hit.mesh) == Layer::Prop;
+          }
+        out[x] = static_cast<float>(hits) * per_ray;
+      }
+    }
+  };
+  int count = threads > 0 ? threads : static_cast<int>(std::thread::hardware_concurrency());
+  count = std::clamp(count, 1, r.height);
+  {
+    std::vector<std::jthread> pool;
+    for (int i = 1; i < count; ++i) pool.emplace_back(worker);
+    worker();
+  }
+  return coverage;
+}
+
 namespace {
 
 // The per-sample change of one differential sample (see render_differential).

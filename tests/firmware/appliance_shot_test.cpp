@@ -225,6 +225,14 @@ TEST_F(ApplianceShotTest, AStillLargerThanTheWorkingSizeIsExportedAtItsOwnSize) 
   std::atomic<bool> cancel{false};
   for (int passes = 0; !render.finished() && passes < 20; ++passes) render.run_pass(&cancel);
   const auto done = render.snapshot(true);
+  // The cube's silhouette traced at the still's size: whole inside, shared on its edges.
+  ASSERT_FALSE(done->full_size_coverage.empty());
+  EXPECT_EQ(done->full_size_coverage.region & cv::Rect(0, 0, 320, 240), done->full_size_coverage.region);
+  double most = 0;
+  cv::minMaxLoc(done->full_size_coverage.coverage, nullptr, &most);
+  EXPECT_EQ(most, 1.0);
+  const cv::Mat& sharp = done->full_size_coverage.coverage;
+  EXPECT_GT(cv::countNonZero((sharp > 0.f) & (sharp < 1.f)), 0);
   const cv::Mat exported = exported_composite(*reduced, *done, Adjustment{});
   ASSERT_EQ(exported.size(), cv::Size(320, 240));
   ASSERT_TRUE(cv::checkRange(exported));

@@ -48,6 +48,40 @@ TEST(WorkingSize, WhatThePropLeftAloneStaysBitForBit) {
   EXPECT_NEAR(inside[1], 0.1f, 1e-4);
 }
 
+// Rendered at the full size, the prop's coverage puts its edge where it is,
+// not smeared over the working pixel it crosses.
+TEST(WorkingSize, ASharpCoverageGivesThePropItsFullSizeEdge) {
+  const cv::Mat full = textured(200, 152);
+  const cv::Mat working = reduce_to(full, {50, 38});
+  cv::Mat composite = working.clone();
+  cv::Mat coverage(working.size(), CV_32F, cv::Scalar(0));
+  composite(cv::Rect(20, 15, 6, 6)).setTo(cv::Scalar(0.9, 0.1, 0.1));
+  coverage(cv::Rect(20, 15, 6, 6)).setTo(1.f);
+  // Its edge at the full size: column 81, inside the working pixel 20 (80..83).
+  SharpCoverage sharp;
+  sharp.region = cv::Rect(70, 50, 40, 40);
+  sharp.coverage = cv::Mat(sharp.region.size(), CV_32F, cv::Scalar(0));
+  sharp.coverage(cv::Rect(81 - 70, 0, 22, 40)).setTo(1.f);
+
+  cv::Mat soft = full.clone(), sharp_edge = full.clone();
+  FullSizeDelivery(working, composite, coverage, full.size()).apply(soft, 0);
+  FullSizeDelivery delivery(working, composite, coverage, full.size());
+  delivery.use_sharp_coverage(sharp);
+  delivery.apply(sharp_edge, 0);
+  const int y = 70;
+  EXPECT_NEAR(sharp_edge.at<cv::Vec3f>(y, 81)[0], 0.9f, 1e-4) << "the first column inside is the prop's";
+  EXPECT_NEAR(sharp_edge.at<cv::Vec3f>(y, 80)[0], full.at<cv::Vec3f>(y, 80)[0], 1e-4) << "the last outside the photo's";
+  EXPECT_GT(std::abs(soft.at<cv::Vec3f>(y, 80)[0] - full.at<cv::Vec3f>(y, 80)[0]), 0.05f) << "upsampled, it smears";
+  // Outside the region the two agree.
+  cv::Mat outside(full.size(), CV_8U, cv::Scalar(255));
+  outside(sharp.region).setTo(0);
+  EXPECT_EQ(cv::norm(soft, sharp_edge, cv::NORM_INF, outside), 0.0);
+
+  SharpCoverage misplaced = sharp;
+  misplaced.region.x = 180;
+  EXPECT_THROW(delivery.use_sharp_coverage(misplaced), std::invalid_argument);
+}
+
 TEST(WorkingSize, AShadowDarkensTheFullPhotosOwnDetail) {
   const cv::Mat full = textured(200, 150);
   const cv::Mat working = reduce_to(full, {50, 38});

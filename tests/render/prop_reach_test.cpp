@@ -103,5 +103,34 @@ TEST(PropReach, CoversTheShadowOfAnAreaLight) {
   expect_reach_covers_the_change(f, lights, "area light");
 }
 
+// One centred ray per pixel is the primary buffers' prop coverage; more rays
+// give the edge pixels their share and leave the inside whole.
+TEST(PropCoverage, StratifiedRaysGiveEdgePixelsTheirShare) {
+  const FloorScene f;
+  const cv::Rect all(0, 0, f.camera.width, f.camera.height);
+  const cv::Mat centred = render_prop_coverage(f.scene, f.camera, all, 1, 2);
+  cv::Mat primary;
+  render_primary_buffers(f.scene, f.camera, true).prop_coverage.convertTo(primary, CV_32F, 1.0 / 255.0);
+  EXPECT_EQ(cv::norm(centred, primary, cv::NORM_INF), 0.0);
+  ASSERT_GT(cv::countNonZero(centred), 4);
+
+  const cv::Mat shares = render_prop_coverage(f.scene, f.camera, all, 4, 2);
+  const cv::Mat partial = (shares > 0.f) & (shares < 1.f);
+  EXPECT_GT(cv::countNonZero(partial), 0) << "the cube's edges cross pixels";
+  cv::Mat inside;
+  cv::erode(shares >= 1.f, inside, cv::Mat());
+  const cv::Mat inside_centred = centred > 0.f;
+  EXPECT_EQ(cv::countNonZero(inside & ~inside_centred), 0) << "wholly covered pixels are covered at their centre";
+  // The total area agrees with the centred count to within the edge pixels.
+  EXPECT_NEAR(cv::sum(shares)[0], cv::sum(centred)[0], cv::countNonZero(partial));
+
+  // A region is that part of the whole; one outside the image is empty.
+  const cv::Rect part(20, 10, 24, 30);
+  const cv::Mat region = render_prop_coverage(f.scene, f.camera, part, 4, 1);
+  EXPECT_EQ(cv::norm(region, shares(part), cv::NORM_INF), 0.0);
+  EXPECT_TRUE(render_prop_coverage(f.scene, f.camera, {100, 100, 5, 5}, 4).empty());
+  EXPECT_THROW(render_prop_coverage(f.scene, f.camera, all, 0), std::invalid_argument);
+}
+
 }  // namespace
 }  // namespace propcam::render

@@ -84,6 +84,13 @@ std::vector<cv::Mat> render_background_light_images(const Scene& scene, const Pi
                                                     const LightRig& lights, const RenderSettings& settings,
                                                     RenderStats* stats = nullptr);
 
+// The share of each pixel of `region` (clipped to the image) whose
+// rays_per_side² stratified camera rays first hit a prop: CV_32F, the
+// region's size. A composite rendered at a smaller size gets its prop's
+// silhouette at this camera's resolution from it.
+cv::Mat render_prop_coverage(const Scene& scene, const PinholeCamera& camera, const cv::Rect& region,
+                             int rays_per_side, int threads = 0);
+
 // `only_where` (CV_8U, optional): pixels left at zero where it is zero.
 PrimaryBuffers render_primary_buffers(const Scene& scene, const PinholeCamera& camera, bool with_props,
                                       const cv::Mat& only_where = cv::Mat());
