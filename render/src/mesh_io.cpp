@@ -499,7 +499,7 @@ constexpr std::uint32_t kComputedNormal = 0x80000000u;
 // Output vertices by key: open addressing with linear probing, at most half full (one cache miss a lookup,
 // where std::unordered_map chases a bucket and a node). The hash is seeded per process, so no file can be
 // made of keys that collide.
-class VertexTable {
+class VertexHashTable {
  public:
   // The vertex of `key`, or `next` (then stored for it) when it has none yet; and whether it was inserted.
   std::pair<int, bool> find_or_insert(const VertexKey& key, int next) {
@@ -545,6 +545,49 @@ class VertexTable {
 
   std::vector<Slot> slots_;
   std::size_t used_ = 0;
+};
+
+// Output vertices by key. Most positions carry one vertex or a few, so the vertices at a position are chained from an
+// array indexed by position: a lookup reads a few words near each other where a hash table takes a cache miss, and
+// the memory grows with the positions and vertices, not with a table at most half full (touching new memory is what
+// loading a large mesh mostly costs). A position whose chain would pass kMaxChain (a pole where each face has its own
+// uv, or a file made to be slow) moves to a VertexHashTable, so no input costs more than linear time.
+class VertexTable {
+ public:
+  explicit VertexTable(std::size_t positions) : first_(positions, kNone) {}
+
+  // The vertex of `key`, or `next` (then stored for it) when it has none yet; and whether it was inserted. `next`
+  // counts up from 0 with each insertion.
+  std::pair<int, bool> find_or_insert(const VertexKey& key, int next) {
+    int& first = first_[key.words[0]];
+    if (first != kCrowded) {
+      int length = 0;
+      for (int v = first; v != kNone; v = chain_[v].next, ++length)
+        if (chain_[v].uv == key.words[1] && chain_[v].normal == key.words[2]) return {v, false};
+      if (length < kMaxChain) {
+        chain_.push_back({key.words[1], key.words[2], first});
+        first = next;
+        return {next, true};
+      }
+      for (int v = first; v != kNone; v = chain_[v].next)
+        crowded_.find_or_insert({{key.words[0], chain_[v].uv, chain_[v].normal}}, v);
+      first = kCrowded;
+    }
+    const auto found = crowded_.find_or_insert(key, next);
+    if (found.second) chain_.push_back({});  // keeps chain_ indexed by vertex
+    return found;
+  }
+
+ private:
+  static constexpr int kNone = -1, kCrowded = -2, kMaxChain = 16;
+  struct Link {
+    std::uint32_t uv = 0, normal = 0;
+    int next = kNone;  // the next vertex at the same position
+  };
+
+  std::vector<int> first_;    // per position: its latest vertex, kNone, or kCrowded
+  std::vector<Link> chain_;   // per vertex
+  VertexHashTable crowded_;
 };
 
 // Smooth normals for corners the file gives none (faces more than 60 degrees apart keep separate normals).
@@ -1061,60 +1104,70 @@ Mesh load_mesh_file(const std::string& path) {
   }
   if (corners.empty()) fail(path, "no triangles (the file has no faces)");
 
-  // Face normals (length = 2 * area) for the corners that need a computed normal.
+  // Which corners need a computed normal; then the face normals (length = 2 * area) for them, only if any do.
   const int triangle_count = static_cast<int>(corners.size());
-  std::vector<Vector3f> face_normal(triangle_count), face_direction(triangle_count);
   std::vector<char> needs_computed(3 * static_cast<std::size_t>(triangle_count));
   bool needs_computed_normals = false;
   for (int t = 0; t < triangle_count; ++t) {
-    const auto& c = corners[t];
-    const Vector3f p0 = obj_position(c[0].position);
-    face_normal[t] = (obj_position(c[1].position) - p0).cross(obj_position(c[2].position) - p0);
-    const float length = face_normal[t].norm();
-    face_direction[t] = length > 0.f ? Vector3f(face_normal[t] / length) : Vector3f::Zero();
     for (int k = 0; k < 3; ++k) {
-      needs_computed[3 * t + k] = file_normal(c[k].normal).isZero();
+      needs_computed[3 * t + k] = file_normal(corners[t][k].normal).isZero();
       needs_computed_normals = needs_computed_normals || needs_computed[3 * t + k];
     }
   }
-  const SmoothNormals computed_normals =
-      needs_computed_normals ? smooth_normals(corners, position_count, needs_computed, face_normal, face_direction)
-                             : SmoothNormals{};
-  face_normal = {};  // their memory, before the mesh's is taken
-  face_direction = {};
+  SmoothNormals computed_normals;
+  if (needs_computed_normals) {
+    std::vector<Vector3f> face_normal(triangle_count), face_direction(triangle_count);
+    for (int t = 0; t < triangle_count; ++t) {
+      const auto& c = corners[t];
+      const Vector3f p0 = obj_position(c[0].position);
+      face_normal[t] = (obj_position(c[1].position) - p0).cross(obj_position(c[2].position) - p0);
+      const float length = face_normal[t].norm();
+      face_direction[t] = length > 0.f ? Vector3f(face_normal[t] / length) : Vector3f::Zero();
+    }
+    computed_normals = smooth_normals(corners, position_count, needs_computed, face_normal, face_direction);
+  }  // the face normals' memory freed before the mesh's is taken
 
   Mesh mesh;
   const bool has_uvs = std::any_of(corners.begin(), corners.end(),
                                    [](const auto& c) { return c[0].uv >= 0 || c[1].uv >= 0 || c[2].uv >= 0; });
-  VertexTable vertex_of;
-  mesh.triangles.reserve(triangle_count);
-  for (int t = 0; t < triangle_count; ++t) {
-    Eigen::Vector3i triangle;
-    for (int k = 0; k < 3; ++k) {
-      const ObjCorner& corner = corners[t][k];
-      const bool computed = needs_computed[3 * t + k];
-      const Vector3f normal = computed ? computed_normals.normals[computed_normals.of_corner[3 * t + k]]
-                                       : file_normal(corner.normal);
-      const std::uint32_t normal_code =
-          computed ? kComputedNormal | static_cast<std::uint32_t>(computed_normals.of_corner[3 * t + k])
-                   : static_cast<std::uint32_t>(corner.normal);
-      const VertexKey key{{static_cast<std::uint32_t>(corner.position), static_cast<std::uint32_t>(corner.uv),
-                           normal_code}};
-      const auto [vertex, inserted] = vertex_of.find_or_insert(key, static_cast<int>(mesh.positions.size()));
-      if (inserted) {
-        if (mesh.positions.size() >= kMaxMeshVertices)
+  const auto normal_code = [&](std::size_t corner_index, const ObjCorner& corner) {
+    return needs_computed[corner_index]
+               ? kComputedNormal | static_cast<std::uint32_t>(computed_normals.of_corner[corner_index])
+               : static_cast<std::uint32_t>(corner.normal);
+  };
+  // The vertices' numbers first, then their attributes: the arrays are taken once, at their size.
+  {
+    VertexTable vertex_of(position_count);
+    int vertex_count = 0;
+    mesh.triangles.resize(triangle_count);
+    for (int t = 0; t < triangle_count; ++t) {
+      for (int k = 0; k < 3; ++k) {
+        const ObjCorner& corner = corners[t][k];
+        const VertexKey key{{static_cast<std::uint32_t>(corner.position), static_cast<std::uint32_t>(corner.uv),
+                             normal_code(3 * t + k, corner)}};
+        const auto [vertex, inserted] = vertex_of.find_or_insert(key, vertex_count);
+        if (inserted && static_cast<std::uint64_t>(vertex_count++) >= kMaxMeshVertices)
           fail(path, "too large: more than " + std::to_string(kMaxMeshVertices) +
                          " vertices (the limit; a vertex is a distinct position, texture coordinate and normal)");
-        mesh.positions.push_back(obj_position(corner.position));
-        mesh.normals.push_back(normal);
-        if (has_uvs)
-          mesh.uvs.push_back(corner.uv >= 0 ? Vector2f(obj.texcoords[2 * corner.uv],
-                                                       1.f - obj.texcoords[2 * corner.uv + 1])  // v up -> v down
-                                            : Vector2f::Zero());
+        mesh.triangles[t][k] = vertex;
       }
-      triangle[k] = vertex;
     }
-    mesh.triangles.push_back(triangle);
+    mesh.positions.reserve(vertex_count);
+    mesh.normals.reserve(vertex_count);
+    if (has_uvs) mesh.uvs.reserve(vertex_count);
+  }
+  for (int t = 0; t < triangle_count; ++t) {
+    for (int k = 0; k < 3; ++k) {
+      if (mesh.triangles[t][k] != static_cast<int>(mesh.positions.size())) continue;  // not its first corner
+      const ObjCorner& corner = corners[t][k];
+      mesh.positions.push_back(obj_position(corner.position));
+      mesh.normals.push_back(needs_computed[3 * t + k] ? computed_normals.normals[computed_normals.of_corner[3 * t + k]]
+                                                       : file_normal(corner.normal));
+      if (has_uvs)
+        mesh.uvs.push_back(corner.uv >= 0 ? Vector2f(obj.texcoords[2 * corner.uv],
+                                                     1.f - obj.texcoords[2 * corner.uv + 1])  // v up -> v down
+                                          : Vector2f::Zero());
+    }
   }
 
   // Only the materials the faces use, in MTL order; the default one last.
@@ -1130,6 +1183,7 @@ Mesh load_mesh_file(const std::string& path) {
     mesh_material_of[-1] = static_cast<int>(mesh.materials.size());
     mesh.materials.push_back(default_material());
   }
+  mesh.material_ids.reserve(obj.material_of.size());
   for (const int obj_id : obj.material_of) mesh.material_ids.push_back(mesh_material_of[obj_id]);
 
   try {
