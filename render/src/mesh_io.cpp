@@ -2,6 +2,7 @@
 
 #include <OpenImageIO/imageio.h>
 #include <fcntl.h>
+#include <sys/mman.h>
 #include <tiny_obj_loader.h>
 #include <unistd.h>
 
@@ -14,10 +15,14 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <memory>
+#include <new>
+#include <optional>
 #include <set>
 #include <stdexcept>
 #include <string_view>
@@ -89,19 +94,20 @@ cv::Mat linear_rgb_to_bgr8_srgb(const cv::Mat& rgb) {
 // Lines as tinyobjloader splits them (at \n, \r or \r\n; leading spaces and tabs skipped; a NUL ends a
 // line's text), read in chunks so that no line, however long, is held whole. For each line with text,
 // on_line(keyword, spaced, words): its first word (only the first kKeywordChars characters kept), whether a
-// space or tab follows it, and the number of words after it.
+// space or tab follows it, and the number of words after it (0 unless wants_text(keyword)). For the lines that
+// wants_text, on_text(keyword, c) sees each character after that space or tab; the others are skipped through.
 constexpr std::size_t kKeywordChars = 8;
 
-template <typename OnLine>
-void scan_lines(std::istream& in, OnLine on_line) {
+template <typename WantsText, typename OnLine, typename OnText>
+void scan_lines(std::istream& in, WantsText wants_text, OnLine on_line, OnText on_text) {
   std::vector<char> chunk(std::size_t{1} << 16);
   std::string keyword;
-  bool spaced = false, in_word = false, ended = false;
+  bool spaced = false, in_word = false, skipping = false;
   std::uint64_t words = 0;
   const auto end_line = [&] {
     if (!keyword.empty()) on_line(std::string_view(keyword), spaced, words);
     keyword.clear();
-    spaced = in_word = ended = false;
+    spaced = in_word = skipping = false;
     words = 0;
   };
   while (in.read(chunk.data(), static_cast<std::streamsize>(chunk.size())) || in.gcount() > 0) {
@@ -110,52 +116,137 @@ void scan_lines(std::istream& in, OnLine on_line) {
       const char c = chunk[i];
       if (c == '\n' || c == '\r') {
         end_line();
-      } else if (ended) {
+      } else if (skipping) {  // to the end of the line: the next \n, or a \r before it
+        const char* const from = chunk.data() + i;
+        const char* end = static_cast<const char*>(std::memchr(from, '\n', count - i));
+        if (const void* cr = std::memchr(from, '\r', (end ? end : chunk.data() + count) - from))
+          end = static_cast<const char*>(cr);
+        i = (end ? end - chunk.data() : count) - 1;
       } else if (c == '\0') {
-        ended = true;
+        skipping = true;
       } else if (c == ' ' || c == '\t') {
-        spaced = spaced || !keyword.empty();
+        if (!spaced && !keyword.empty()) {
+          spaced = true;
+          skipping = !wants_text(std::string_view(keyword));
+        }
         in_word = false;
+        if (spaced && !skipping) on_text(std::string_view(keyword), c);
       } else if (!spaced) {
         if (keyword.size() < kKeywordChars) keyword += c;
-      } else if (!in_word) {
-        in_word = true;
-        ++words;
+      } else {  // the text of a line wants_text, in a loop of its own (faces are most of an OBJ)
+        const std::string_view wanted(keyword);
+        std::size_t j = i;
+        for (; j < count && chunk[j] != '\n' && chunk[j] != '\r' && chunk[j] != '\0'; ++j) {
+          on_text(wanted, chunk[j]);
+          const bool space = chunk[j] == ' ' || chunk[j] == '\t';
+          words += !space && !in_word;
+          in_word = !space;
+        }
+        i = j - 1;  // the end of the line, or the NUL, is the outer loop's
       }
     }
   }
   end_line();
 }
 
-// The records of an OBJ that cost memory, counted before tinyobjloader allocates them.
-struct ObjCensus {
-  std::uint64_t positions = 0, uvs = 0, normals = 0;
-  std::uint64_t triangles = 0;        // after triangulation: corners - 2 per face
-  std::uint64_t largest_polygon = 0;  // corners
-};
-
-ObjCensus census_obj(std::istream& in) {
-  ObjCensus census;
-  scan_lines(in, [&](std::string_view keyword, bool spaced, std::uint64_t words) {
-    if (!spaced) return;
-    if (keyword == "v") {
-      ++census.positions;
-    } else if (keyword == "vt") {
-      ++census.uvs;
-    } else if (keyword == "vn") {
-      ++census.normals;
-    } else if (keyword == "f") {
-      if (words >= 3) census.triangles += words - 2;
-      census.largest_polygon = std::max(census.largest_polygon, words);
-    }
-  });
-  return census;
+template <typename OnLine>
+void scan_lines(std::istream& in, OnLine on_line) {
+  scan_lines(in, [](std::string_view) { return false; }, on_line, [](std::string_view, char) {});
 }
 
 // tinyobjloader's ear clipping takes time quadratic in a polygon's corners (a 4000-gon takes 0.15 s).
 // Larger polygons are split as a fan from their first corner before it sees them: right for convex
 // polygons, which large ones nearly always are (discs, the caps of cylinders).
 constexpr std::uint64_t kMaxEarClippedCorners = 64;
+
+// The records of an OBJ that cost memory, counted before they are allocated, and what decides how it is read.
+struct ObjCensus {
+  std::uint64_t positions = 0, uvs = 0, normals = 0;
+  std::uint64_t triangles = 0;        // after triangulation: corners - 2 per face
+  std::uint64_t largest_polygon = 0;  // corners
+  std::uint64_t quads = 0;
+  // Lines only tinyobjloader's LoadObj reads as it does (StreamingObj tells why): a face of 5 to
+  // kMaxEarClippedCorners corners (ear clipping); `l`, `p` or `vw` lines (LoadObj may refuse them); `usemtl` with
+  // no space after it; a face whose texture coordinate or normal index could read as 0 (LoadObj refuses it, the
+  // streaming reader cannot tell it from an absent one).
+  bool needs_load_obj = false;
+};
+
+// Whether a face's index fields read as LoadObj reads them with none of texture coordinate or normal read as 0:
+// each after a '/' starts with 1-9, or - and 1-9; '//' only after the position; at most two '/' a corner; at most 9
+// digits in a row (no overflow to 0). A state machine over character classes, fed the text after the "f".
+class FaceIndexCheck {
+ public:
+  void feed(char c) {
+    const int kind = kClass[static_cast<unsigned char>(c)];
+    state_ = kNext[state_][kind];
+    digits_ = kind == kZero || kind == kDigit ? digits_ + 1 : 0;
+    long_number_ = long_number_ || digits_ > 9;
+  }
+  // At the end of a face's line: whether LoadObj might read an index there as 0; then ready for the next line.
+  bool doubtful_and_reset() {
+    const bool doubtful = long_number_ || !(state_ == kInField0 || state_ == kInField1 || state_ == kInField2);
+    state_ = kInField0;
+    digits_ = 0;
+    long_number_ = false;
+    return doubtful;
+  }
+
+ private:
+  enum Class : std::uint8_t { kOther, kZero, kDigit, kMinus, kSlash, kSpace };
+  // In the position (or between corners), after the first '/', after it and '-', in the texture coordinate, after
+  // the second '/', after it and '-', in the normal; refused.
+  enum State : std::uint8_t { kInField0, kSlash1, kMinus1, kInField1, kSlash2, kMinus2, kInField2, kRefused };
+  static constexpr std::array<std::uint8_t, 256> kClass = [] {
+    std::array<std::uint8_t, 256> classes{};
+    classes['0'] = kZero;
+    for (char c = '1'; c <= '9'; ++c) classes[static_cast<unsigned char>(c)] = kDigit;
+    classes['-'] = kMinus;
+    classes['/'] = kSlash;
+    classes[' '] = classes['\t'] = kSpace;
+    return classes;
+  }();
+  static constexpr std::uint8_t kNext[8][6] = {
+      // other      zero       1-9         -          /         space
+      {kInField0, kInField0, kInField0, kInField0, kSlash1, kInField0},   // kInField0
+      {kRefused, kRefused, kInField1, kMinus1, kSlash2, kRefused},        // kSlash1 ('//' after the position)
+      {kRefused, kRefused, kInField1, kRefused, kRefused, kRefused},      // kMinus1
+      {kInField1, kInField1, kInField1, kInField1, kSlash2, kInField0},   // kInField1
+      {kRefused, kRefused, kInField2, kMinus2, kRefused, kRefused},       // kSlash2
+      {kRefused, kRefused, kInField2, kRefused, kRefused, kRefused},      // kMinus2
+      {kInField2, kInField2, kInField2, kInField2, kRefused, kInField0},  // kInField2
+      {kRefused, kRefused, kRefused, kRefused, kRefused, kRefused},       // kRefused
+  };
+  int state_ = kInField0, digits_ = 0;  // not chars, which may alias anything: kept in registers
+  bool long_number_ = false;
+};
+
+ObjCensus census_obj(std::istream& in) {
+  ObjCensus census;
+  FaceIndexCheck face_check;
+  scan_lines(
+      in, [](std::string_view keyword) { return keyword == "f"; },
+      [&](std::string_view keyword, bool spaced, std::uint64_t words) {
+        if (keyword.starts_with("usemtl") && (keyword.size() > 6 || !spaced)) census.needs_load_obj = true;
+        if (spaced && (keyword == "l" || keyword == "p" || keyword == "vw")) census.needs_load_obj = true;
+        if (!spaced) return;
+        if (keyword == "v") {
+          ++census.positions;
+        } else if (keyword == "vt") {
+          ++census.uvs;
+        } else if (keyword == "vn") {
+          ++census.normals;
+        } else if (keyword == "f") {
+          if (words >= 3) census.triangles += words - 2;
+          census.largest_polygon = std::max(census.largest_polygon, words);
+          census.quads += words == 4;
+          if (words >= 5 && words <= kMaxEarClippedCorners) census.needs_load_obj = true;
+          if (face_check.doubtful_and_reset()) census.needs_load_obj = true;
+        }
+      },
+      [&](std::string_view, char c) { face_check.feed(c); });
+  return census;
+}
 
 // An OBJ's text as it reads, but with every face of more than kMaxEarClippedCorners corners written as a fan of
 // triangles; tinyobjloader reads through it, so only one line of the file is held at a time.
@@ -246,6 +337,8 @@ class MtlFileReader : public tinyobj::MaterialReader {
     in.seekg(0);
     tinyobj::LoadMtl(material_map, materials, &in, warn, err);
     source_files_.resize(materials->size(), mtl_path);
+    material_map_ = material_map;
+    read_materials_.insert(read_materials_.end(), materials->begin() + read_materials_.size(), materials->end());
     return true;
   }
 
@@ -253,11 +346,18 @@ class MtlFileReader : public tinyobj::MaterialReader {
     return material < static_cast<int>(source_files_.size()) ? source_files_[material].parent_path() : obj_folder_;
   }
 
+  // LoadObjWithCallback keeps the materials and their names to itself: the materials as read so far, and the
+  // loader's map from name to index (null before the first .mtl; valid while the loader runs).
+  std::vector<tinyobj::material_t>& read_materials() { return read_materials_; }
+  const std::map<std::string, int>* material_map() const { return material_map_; }
+
  private:
   std::string obj_path_;
   fs::path obj_folder_;
   std::vector<fs::path> source_files_;  // per material index
   std::set<fs::path> read_;
+  std::vector<tinyobj::material_t> read_materials_;
+  const std::map<std::string, int>* material_map_ = nullptr;
 };
 
 // JPEG's signature, by which OpenCV picks its JPEG decoder: the one that can decode at 1/2, 1/4 or 1/8.
@@ -388,6 +488,39 @@ Material default_material() {
   return m;
 }
 
+// The loader's large temporary arrays ask the kernel for 2 MiB pages (transparent huge pages, where it gives them on
+// request; advice it may ignore). Where first touches of memory are dear (a virtual machine: 12 to 23 us a 4 KiB
+// page), they, not the parse, are most of a large mesh's loading time; one fault then maps 512 pages.
+template <typename T>
+struct BulkAllocator {
+  using value_type = T;
+  static constexpr std::size_t kHugePage = std::size_t{2} << 20;
+
+  BulkAllocator() = default;
+  template <typename U>
+  BulkAllocator(const BulkAllocator<U>&) {}
+
+  T* allocate(std::size_t n) {
+    const std::size_t bytes = n * sizeof(T);
+    if (bytes < kHugePage) return std::allocator<T>().allocate(n);
+    const std::size_t rounded = (bytes + kHugePage - 1) / kHugePage * kHugePage;
+    void* memory = std::aligned_alloc(kHugePage, rounded);
+    if (!memory) throw std::bad_alloc();
+    ::madvise(memory, rounded, MADV_HUGEPAGE);
+    return static_cast<T*>(memory);
+  }
+  void deallocate(T* memory, std::size_t n) {
+    if (n * sizeof(T) < kHugePage) {
+      std::allocator<T>().deallocate(memory, n);
+    } else {
+      std::free(memory);
+    }
+  }
+  friend bool operator==(const BulkAllocator&, const BulkAllocator&) { return true; }
+};
+template <typename T>
+using BulkVector = std::vector<T, BulkAllocator<T>>;
+
 struct ObjCorner {
   int position, uv, normal;  // OBJ indices, -1 when absent
 };
@@ -403,7 +536,7 @@ constexpr std::uint32_t kComputedNormal = 0x80000000u;
 // Output vertices by key: open addressing with linear probing, at most half full (one cache miss a lookup,
 // where std::unordered_map chases a bucket and a node). The hash is seeded per process, so no file can be
 // made of keys that collide.
-class VertexTable {
+class VertexHashTable {
  public:
   // The vertex of `key`, or `next` (then stored for it) when it has none yet; and whether it was inserted.
   std::pair<int, bool> find_or_insert(const VertexKey& key, int next) {
@@ -441,14 +574,57 @@ class VertexTable {
     return h;
   }
   void grow() {
-    std::vector<Slot> old = std::exchange(slots_, std::vector<Slot>(std::max<std::size_t>(64, 2 * slots_.size())));
+    BulkVector<Slot> old = std::exchange(slots_, BulkVector<Slot>(std::max<std::size_t>(64, 2 * slots_.size())));
     used_ = 0;
     for (const Slot& slot : old)
       if (slot.vertex >= 0) find_or_insert(slot.key, slot.vertex);
   }
 
-  std::vector<Slot> slots_;
+  BulkVector<Slot> slots_;
   std::size_t used_ = 0;
+};
+
+// Output vertices by key. Most positions carry one vertex or a few, so the vertices at a position are chained from an
+// array indexed by position: a lookup reads a few words near each other where a hash table takes a cache miss, and
+// the memory grows with the positions and vertices, not with a table at most half full (touching new memory is what
+// loading a large mesh mostly costs). A position whose chain would pass kMaxChain (a pole where each face has its own
+// uv, or a file made to be slow) moves to a VertexHashTable, so no input costs more than linear time.
+class VertexTable {
+ public:
+  explicit VertexTable(std::size_t positions) : first_(positions, kNone) {}
+
+  // The vertex of `key`, or `next` (then stored for it) when it has none yet; and whether it was inserted. `next`
+  // counts up from 0 with each insertion.
+  std::pair<int, bool> find_or_insert(const VertexKey& key, int next) {
+    int& first = first_[key.words[0]];
+    if (first != kCrowded) {
+      int length = 0;
+      for (int v = first; v != kNone; v = chain_[v].next, ++length)
+        if (chain_[v].uv == key.words[1] && chain_[v].normal == key.words[2]) return {v, false};
+      if (length < kMaxChain) {
+        chain_.push_back({key.words[1], key.words[2], first});
+        first = next;
+        return {next, true};
+      }
+      for (int v = first; v != kNone; v = chain_[v].next)
+        crowded_.find_or_insert({{key.words[0], chain_[v].uv, chain_[v].normal}}, v);
+      first = kCrowded;
+    }
+    const auto found = crowded_.find_or_insert(key, next);
+    if (found.second) chain_.push_back({});  // keeps chain_ indexed by vertex
+    return found;
+  }
+
+ private:
+  static constexpr int kNone = -1, kCrowded = -2, kMaxChain = 16;
+  struct Link {
+    std::uint32_t uv = 0, normal = 0;
+    int next = kNone;  // the next vertex at the same position
+  };
+
+  BulkVector<int> first_;    // per position: its latest vertex, kNone, or kCrowded
+  BulkVector<Link> chain_;   // per vertex
+  VertexHashTable crowded_;
 };
 
 // Smooth normals for corners the file gives none (faces more than 60 degrees apart keep separate normals).
@@ -477,28 +653,28 @@ int crease_bin(const Vector3f& d) {
 }
 
 struct SmoothNormals {
-  std::vector<int> of_corner;  // per corner (3 * triangle + k): index into `normals`, -1 where not needed
+  BulkVector<int> of_corner;  // per corner (3 * triangle + k): index into `normals`, -1 where not needed
   std::vector<Vector3f> normals;  // distinct (in bits) at each position, so an index stands for the bits in a key
 };
 
 // `needed` per corner; `face_normal` per triangle (length 2 * area), `face_direction` its unit vector or zero.
-SmoothNormals smooth_normals(const std::vector<std::array<ObjCorner, 3>>& corners, int position_count,
-                             const std::vector<char>& needed, const std::vector<Vector3f>& face_normal,
-                             const std::vector<Vector3f>& face_direction) {
+SmoothNormals smooth_normals(const BulkVector<std::array<ObjCorner, 3>>& corners, int position_count,
+                             const BulkVector<char>& needed, const BulkVector<Vector3f>& face_normal,
+                             const BulkVector<Vector3f>& face_direction) {
   const int corner_count = static_cast<int>(3 * corners.size());
   // The corners around each position, in triangle order, for the positions that need a normal.
-  std::vector<char> position_needed(position_count, 0);
+  BulkVector<char> position_needed(position_count, 0);
   for (int c = 0; c < corner_count; ++c)
     if (needed[c]) position_needed[corners[c / 3][c % 3].position] = 1;
-  std::vector<int> offsets(position_count + 1, 0);
+  BulkVector<int> offsets(position_count + 1, 0);
   for (int c = 0; c < corner_count; ++c) {
     const int p = corners[c / 3][c % 3].position;
     if (position_needed[p]) ++offsets[p + 1];
   }
   for (int p = 0; p < position_count; ++p) offsets[p + 1] += offsets[p];
-  std::vector<int> around(offsets.back());
+  BulkVector<int> around(offsets.back());
   {
-    std::vector<int> fill(offsets.begin(), offsets.end() - 1);
+    BulkVector<int> fill(offsets.begin(), offsets.end() - 1);
     for (int c = 0; c < corner_count; ++c) {
       const int p = corners[c / 3][c % 3].position;
       if (position_needed[p]) around[fill[p]++] = c;
@@ -578,6 +754,237 @@ SmoothNormals smooth_normals(const std::vector<std::array<ObjCorner, 3>>& corner
     for (int k = begin; k < end; ++k) out.of_corner[around[k]] = bin_index[crease_bin(face_direction[around[k] / 3])];
   }
   return out;
+}
+
+// ---------------------------------------------------------------------------
+// Reading an OBJ's records and faces
+
+// An OBJ as the mesh is built from it: its records as tinyobjloader reads them (3, 2 and 3 floats a record), and its
+// faces as triangles of corners in file order with their material (an index into `materials`, -1 for none). Corner
+// indices are 0-based, relative ones resolved, not yet checked against the counts.
+struct ObjContent {
+  std::vector<float> positions, texcoords, normals;
+  BulkVector<std::array<ObjCorner, 3>> corners;
+  BulkVector<int> material_of;
+  std::vector<tinyobj::material_t> materials;
+};
+
+// Thrown from read_obj_streaming's callbacks when the file turns out to need LoadObj after all.
+struct NeedsLoadObj {};
+
+// The OBJ through tinyobjloader's LoadObjWithCallback: records and corners go straight into arrays reserved from
+// the census, where LoadObj keeps a vector per face (most of its 1.2 s and 150 MB a million faces) and copies its
+// shapes once more. For a file without census.needs_load_obj it reads what LoadObj reads: the same numbers, indices
+// resolved as LoadObj resolves them, faces of fewer than 3 corners dropped, quads split along the shorter diagonal
+// (LoadObj's rule, with the positions read by its flush: the next group, object or change of material, or the end;
+// a quad naming a position not read by then is dropped as LoadObj drops it), faces of more than
+// kMaxEarClippedCorners split as a fan (as FanSplittingBuf does for LoadObj), `usemtl` names looked up as LoadObj
+// looks them up. Throws NeedsLoadObj where LoadObj would refuse a face (a position index of 0).
+class StreamingObj {
+ public:
+  StreamingObj(ObjContent& out, MtlFileReader& mtl_reader, std::uint64_t quads)
+      : out_(out), mtl_reader_(mtl_reader) {
+    quads_.reserve(quads);
+  }
+
+  tinyobj::callback_t callbacks() const {
+    tinyobj::callback_t cb;
+    cb.vertex_cb = [](void* self, float x, float y, float z, float) {
+      static_cast<StreamingObj*>(self)->out_.positions.insert(static_cast<StreamingObj*>(self)->out_.positions.end(),
+                                                              {x, y, z});
+    };
+    cb.texcoord_cb = [](void* self, float u, float v, float) {
+      static_cast<StreamingObj*>(self)->out_.texcoords.insert(static_cast<StreamingObj*>(self)->out_.texcoords.end(),
+                                                              {u, v});
+    };
+    cb.normal_cb = [](void* self, float x, float y, float z) {
+      static_cast<StreamingObj*>(self)->out_.normals.insert(static_cast<StreamingObj*>(self)->out_.normals.end(),
+                                                            {x, y, z});
+    };
+    cb.index_cb = [](void* self, tinyobj::index_t* indices, int count) {
+      static_cast<StreamingObj*>(self)->face(indices, count);
+    };
+    cb.usemtl_cb = [](void* self, const char* name, int) { static_cast<StreamingObj*>(self)->usemtl(name); };
+    cb.group_cb = [](void* self, const char**, int) { static_cast<StreamingObj*>(self)->flush(); };
+    cb.object_cb = [](void* self, const char*) { static_cast<StreamingObj*>(self)->flush(); };
+    return cb;
+  }
+
+  // After the parse: the quads split, those LoadObj drops dropped.
+  void finish() {
+    flush();
+    auto& corners = out_.corners;
+    bool dropped = false;
+    std::size_t q = 0;
+    for (const auto& [end, position_count] : quad_flushes_) {
+      for (; q < end; ++q) {
+        const std::size_t slot = quads_[q];
+        const ObjCorner c[4] = {corners[slot][0], corners[slot][1], corners[slot][2], corners[slot + 1][0]};
+        if (std::any_of(c, c + 4, [&](const ObjCorner& k) {
+              return k.position < 0 || static_cast<std::size_t>(k.position) >= position_count;
+            })) {
+          out_.material_of[slot] = out_.material_of[slot + 1] = kDropped;
+          dropped = true;
+          continue;
+        }
+        const float* p[4];
+        for (int k = 0; k < 4; ++k) p[k] = &out_.positions[3 * static_cast<std::size_t>(c[k].position)];
+        const float e02x = p[2][0] - p[0][0], e02y = p[2][1] - p[0][1], e02z = p[2][2] - p[0][2];
+        const float e13x = p[3][0] - p[1][0], e13y = p[3][1] - p[1][1], e13z = p[3][2] - p[1][2];
+        const float sqr02 = e02x * e02x + e02y * e02y + e02z * e02z;
+        const float sqr13 = e13x * e13x + e13y * e13y + e13z * e13z;
+        if (sqr02 < sqr13) {
+          corners[slot] = {c[0], c[1], c[2]};
+          corners[slot + 1] = {c[0], c[2], c[3]};
+        } else {
+          corners[slot] = {c[0], c[1], c[3]};
+          corners[slot + 1] = {c[1], c[2], c[3]};
+        }
+      }
+    }
+    if (!dropped) return;
+    std::size_t kept = 0;
+    for (std::size_t t = 0; t < corners.size(); ++t) {
+      if (out_.material_of[t] == kDropped) continue;
+      corners[kept] = corners[t];
+      out_.material_of[kept++] = out_.material_of[t];
+    }
+    corners.resize(kept);
+    out_.material_of.resize(kept);
+  }
+
+ private:
+  static constexpr int kDropped = -2;  // material_of of a dropped quad's two slots
+
+  // LoadObj's fixIndex: 1-based, negative counts back from the records read so far; 0 (absent here) -> -1.
+  static int resolved(int index, std::size_t count) {
+    return index > 0 ? index - 1 : index < 0 ? static_cast<int>(count) + index : -1;
+  }
+
+  void face(const tinyobj::index_t* indices, int count) {
+    if (count < 3) return;  // LoadObj drops them
+    if (count > 4 && count <= static_cast<int>(kMaxEarClippedCorners)) throw NeedsLoadObj{};  // ear clipping
+    const std::size_t positions = out_.positions.size() / 3, uvs = out_.texcoords.size() / 2,
+                      normals = out_.normals.size() / 3;
+    const auto corner = [&](int k) {
+      const tinyobj::index_t& i = indices[k];
+      if (i.vertex_index == 0) throw NeedsLoadObj{};  // LoadObj refuses the line
+      return ObjCorner{resolved(i.vertex_index, positions), std::max(resolved(i.texcoord_index, uvs), -1),
+                       std::max(resolved(i.normal_index, normals), -1)};
+    };
+    const int material = material_ < static_cast<int>(mtl_reader_.read_materials().size()) ? material_ : -1;
+    const ObjCorner first = corner(0);
+    if (count == 4) {  // split in finish(), when the positions it names are read
+      quads_.push_back(out_.corners.size());
+      out_.corners.push_back({first, corner(1), corner(2)});
+      out_.corners.push_back({corner(3), first, first});
+      out_.material_of.insert(out_.material_of.end(), 2, material);
+      return;
+    }
+    ObjCorner previous = corner(1);
+    for (int k = 2; k < count; ++k) {
+      const ObjCorner next = corner(k);
+      out_.corners.push_back({first, previous, next});
+      out_.material_of.push_back(material);
+      previous = next;
+    }
+  }
+
+  void usemtl(const char* rest_of_line) {
+    // LoadObj's parseString: the first word.
+    std::string_view name(rest_of_line);
+    name.remove_prefix(std::min(name.find_first_not_of(" \t"), name.size()));
+    name = name.substr(0, name.find_first_of(" \t\r"));
+    int material = -1;
+    if (const auto* map = mtl_reader_.material_map()) {
+      const auto it = map->find(std::string(name));
+      if (it != map->end()) material = it->second;
+    }
+    if (material == material_) return;
+    flush();
+    material_ = material;
+  }
+
+  // Where LoadObj would triangulate the faces read so far: the quads since the last flush see the positions read now.
+  void flush() {
+    if (quads_.size() == flushed_quads_) return;
+    quad_flushes_.push_back({quads_.size(), out_.positions.size() / 3});
+    flushed_quads_ = quads_.size();
+  }
+
+  ObjContent& out_;
+  MtlFileReader& mtl_reader_;
+  int material_ = -1;
+  std::vector<std::size_t> quads_;                                // first of each quad's two slots
+  std::vector<std::pair<std::size_t, std::size_t>> quad_flushes_;  // quads before it, positions read by then
+  std::size_t flushed_quads_ = 0;
+};
+
+// The OBJ through LoadObjWithCallback, or nullopt where only LoadObj reads it as LoadObj does.
+std::optional<ObjContent> read_obj_streaming(std::istream& in, const ObjCensus& census, MtlFileReader& mtl_reader) {
+  if (census.needs_load_obj) return std::nullopt;
+  ObjContent obj;
+  obj.positions.reserve(3 * census.positions);
+  obj.texcoords.reserve(2 * census.uvs);
+  obj.normals.reserve(3 * census.normals);
+  obj.corners.reserve(census.triangles);
+  obj.material_of.reserve(census.triangles);
+  StreamingObj reader(obj, mtl_reader, census.quads);
+  std::string warnings, errors;
+  try {
+    tinyobj::LoadObjWithCallback(in, reader.callbacks(), &reader, &mtl_reader, &warnings, &errors);
+  } catch (const NeedsLoadObj&) {
+    return std::nullopt;
+  }
+  reader.finish();
+  obj.materials = std::move(mtl_reader.read_materials());
+  return obj;
+}
+
+// The OBJ through LoadObj (triangulating, ear clipping included), faces over kMaxEarClippedCorners split first.
+ObjContent read_obj_with_load_obj(const std::string& path, std::istream& in, const ObjCensus& census,
+                                  MtlFileReader& mtl_reader) {
+  FanSplittingBuf fan_splitting(in);
+  std::istream fanned(&fan_splitting);
+  std::istream& text = census.largest_polygon > kMaxEarClippedCorners ? fanned : in;
+
+  tinyobj::attrib_t attrib;
+  std::vector<tinyobj::shape_t> shapes;
+  ObjContent obj;
+  std::string warnings, errors;
+  if (!tinyobj::LoadObj(&attrib, &shapes, &obj.materials, &warnings, &errors, &text, &mtl_reader,
+                        /*triangulate=*/true, /*default_vcols_fallback=*/false))
+    fail(path, "parse error: " + trim(errors));
+  obj.positions.swap(attrib.vertices);
+  obj.texcoords.swap(attrib.texcoords);
+  obj.normals.swap(attrib.normals);
+  attrib = {};
+
+  // Triangles as OBJ corners (fan-split anything tinyobjloader left as a polygon).
+  std::vector<ObjCorner> polygon;
+  std::size_t triangle_total = 0;
+  for (const auto& shape : shapes)
+    for (const unsigned count : shape.mesh.num_face_vertices) triangle_total += count >= 3 ? count - 2 : 0;
+  obj.corners.reserve(triangle_total);
+  obj.material_of.reserve(triangle_total);
+  for (const auto& shape : shapes) {
+    size_t first = 0;
+    for (size_t face = 0; face < shape.mesh.num_face_vertices.size(); ++face) {
+      const int count = shape.mesh.num_face_vertices[face];
+      const int material = face < shape.mesh.material_ids.size() ? shape.mesh.material_ids[face] : -1;
+      polygon.clear();
+      for (int k = 0; k < count; ++k) {
+        const tinyobj::index_t& idx = shape.mesh.indices[first + k];
+        polygon.push_back({idx.vertex_index, std::max(idx.texcoord_index, -1), std::max(idx.normal_index, -1)});
+      }
+      for (int k = 1; k + 1 < count; ++k) {
+        obj.corners.push_back({polygon[0], polygon[k], polygon[k + 1]});
+        obj.material_of.push_back(material < static_cast<int>(obj.materials.size()) ? material : -1);
+      }
+      first += count;
+    }
+  }
+  return obj;
 }
 
 // ---------------------------------------------------------------------------
@@ -689,146 +1096,132 @@ Mesh load_mesh_file(const std::string& path) {
     if (count > kMaxMeshVertices) fail(path, count_over_limit(count, what, kMaxMeshVertices));
   in.clear();
   in.seekg(0);
-  FanSplittingBuf fan_splitting(in);
-  std::istream fanned(&fan_splitting);
-  std::istream& text = census.largest_polygon > kMaxEarClippedCorners ? fanned : in;
+  std::optional<MtlFileReader> mtl_reader(std::in_place, path, file.parent_path());
+  std::optional<ObjContent> read = read_obj_streaming(in, census, *mtl_reader);
+  if (!read) {
+    in.clear();
+    in.seekg(0);
+    mtl_reader.emplace(path, file.parent_path());
+    read = read_obj_with_load_obj(path, in, census, *mtl_reader);
+  }
+  ObjContent& obj = *read;
 
-  tinyobj::attrib_t attrib;
-  std::vector<tinyobj::shape_t> shapes;
-  std::vector<tinyobj::material_t> obj_materials;
-  std::string warnings, errors;
-  MtlFileReader mtl_reader(path, file.parent_path());
-  if (!tinyobj::LoadObj(&attrib, &shapes, &obj_materials, &warnings, &errors, &text, &mtl_reader,
-                        /*triangulate=*/true, /*default_vcols_fallback=*/false))
-    fail(path, "parse error: " + trim(errors));
-
-  const auto all_finite = [](const std::vector<tinyobj::real_t>& values) {
-    return std::all_of(values.begin(), values.end(), [](tinyobj::real_t v) { return std::isfinite(v); });
+  const auto all_finite = [](const std::vector<float>& values) {
+    return std::all_of(values.begin(), values.end(), [](float v) { return std::isfinite(v); });
   };
-  if (!all_finite(attrib.vertices)) fail(path, "non-finite vertex position");
-  if (!all_finite(attrib.normals)) fail(path, "non-finite vertex normal");
-  if (!all_finite(attrib.texcoords)) fail(path, "non-finite texture coordinate");
-  const int position_count = static_cast<int>(attrib.vertices.size() / 3);
-  const int normal_count = static_cast<int>(attrib.normals.size() / 3);
-  const int uv_count = static_cast<int>(attrib.texcoords.size() / 2);
+  if (!all_finite(obj.positions)) fail(path, "non-finite vertex position");
+  if (!all_finite(obj.normals)) fail(path, "non-finite vertex normal");
+  if (!all_finite(obj.texcoords)) fail(path, "non-finite texture coordinate");
+  const int position_count = static_cast<int>(obj.positions.size() / 3);
+  const int normal_count = static_cast<int>(obj.normals.size() / 3);
+  const int uv_count = static_cast<int>(obj.texcoords.size() / 2);
   const auto obj_position = [&](int i) {
-    return Vector3f(attrib.vertices[3 * i], attrib.vertices[3 * i + 1], attrib.vertices[3 * i + 2]);
+    return Vector3f(obj.positions[3 * i], obj.positions[3 * i + 1], obj.positions[3 * i + 2]);
   };
   // Unit normal from the file, or zero when the corner has none (or a zero one).
   const auto file_normal = [&](int i) {
     if (i < 0) return Vector3f(Vector3f::Zero());
-    const Vector3f n(attrib.normals[3 * i], attrib.normals[3 * i + 1], attrib.normals[3 * i + 2]);
+    const Vector3f n(obj.normals[3 * i], obj.normals[3 * i + 1], obj.normals[3 * i + 2]);
     return n.norm() > 1e-12f ? Vector3f(n.normalized()) : Vector3f(Vector3f::Zero());
   };
 
-  // Triangles as OBJ corners (fan-split anything tinyobjloader left as a polygon).
-  std::vector<std::array<ObjCorner, 3>> corners;
-  std::vector<int> obj_material_of;  // per triangle, -1 = none
-  std::vector<ObjCorner> polygon;
-  std::size_t triangle_total = 0;
-  for (const auto& shape : shapes)
-    for (const unsigned count : shape.mesh.num_face_vertices) triangle_total += count >= 3 ? count - 2 : 0;
-  corners.reserve(triangle_total);
-  obj_material_of.reserve(triangle_total);
-  for (const auto& shape : shapes) {
-    size_t first = 0;
-    for (size_t face = 0; face < shape.mesh.num_face_vertices.size(); ++face) {
-      const int count = shape.mesh.num_face_vertices[face];
-      const int material = face < shape.mesh.material_ids.size() ? shape.mesh.material_ids[face] : -1;
-      polygon.clear();
-      for (int k = 0; k < count; ++k) {
-        const tinyobj::index_t& idx = shape.mesh.indices[first + k];
-        if (idx.vertex_index < 0 || idx.vertex_index >= position_count)
-          fail(path, "face refers to vertex " + std::to_string(idx.vertex_index + 1) + " but the file has " +
-                         std::to_string(position_count));
-        if (idx.normal_index >= normal_count)
-          fail(path, "face refers to normal " + std::to_string(idx.normal_index + 1) + " but the file has " +
-                         std::to_string(normal_count));
-        if (idx.texcoord_index >= uv_count)
-          fail(path, "face refers to texture coordinate " + std::to_string(idx.texcoord_index + 1) +
-                         " but the file has " + std::to_string(uv_count));
-        polygon.push_back({idx.vertex_index, std::max(idx.texcoord_index, -1), std::max(idx.normal_index, -1)});
-      }
-      for (int k = 1; k + 1 < count; ++k) {
-        corners.push_back({polygon[0], polygon[k], polygon[k + 1]});
-        obj_material_of.push_back(material < static_cast<int>(obj_materials.size()) ? material : -1);
-      }
-      first += count;
+  const BulkVector<std::array<ObjCorner, 3>>& corners = obj.corners;
+  for (const auto& triangle : corners) {
+    for (const ObjCorner& corner : triangle) {
+      if (corner.position < 0 || corner.position >= position_count)
+        fail(path, "face refers to vertex " + std::to_string(corner.position + 1) + " but the file has " +
+                       std::to_string(position_count));
+      if (corner.normal >= normal_count)
+        fail(path, "face refers to normal " + std::to_string(corner.normal + 1) + " but the file has " +
+                       std::to_string(normal_count));
+      if (corner.uv >= uv_count)
+        fail(path, "face refers to texture coordinate " + std::to_string(corner.uv + 1) + " but the file has " +
+                       std::to_string(uv_count));
     }
   }
   if (corners.empty()) fail(path, "no triangles (the file has no faces)");
-  shapes = {};  // their memory, before the mesh's is taken
 
-  // Face normals (length = 2 * area) for the corners that need a computed normal.
+  // Which corners need a computed normal; then the face normals (length = 2 * area) for them, only if any do.
   const int triangle_count = static_cast<int>(corners.size());
-  std::vector<Vector3f> face_normal(triangle_count), face_direction(triangle_count);
-  std::vector<char> needs_computed(3 * static_cast<std::size_t>(triangle_count));
+  BulkVector<char> needs_computed(3 * static_cast<std::size_t>(triangle_count));
   bool needs_computed_normals = false;
   for (int t = 0; t < triangle_count; ++t) {
-    const auto& c = corners[t];
-    const Vector3f p0 = obj_position(c[0].position);
-    face_normal[t] = (obj_position(c[1].position) - p0).cross(obj_position(c[2].position) - p0);
-    const float length = face_normal[t].norm();
-    face_direction[t] = length > 0.f ? Vector3f(face_normal[t] / length) : Vector3f::Zero();
     for (int k = 0; k < 3; ++k) {
-      needs_computed[3 * t + k] = file_normal(c[k].normal).isZero();
+      needs_computed[3 * t + k] = file_normal(corners[t][k].normal).isZero();
       needs_computed_normals = needs_computed_normals || needs_computed[3 * t + k];
     }
   }
-  const SmoothNormals computed_normals =
-      needs_computed_normals ? smooth_normals(corners, position_count, needs_computed, face_normal, face_direction)
-                             : SmoothNormals{};
-  face_normal = {};  // their memory, before the mesh's is taken
-  face_direction = {};
+  SmoothNormals computed_normals;
+  if (needs_computed_normals) {
+    BulkVector<Vector3f> face_normal(triangle_count), face_direction(triangle_count);
+    for (int t = 0; t < triangle_count; ++t) {
+      const auto& c = corners[t];
+      const Vector3f p0 = obj_position(c[0].position);
+      face_normal[t] = (obj_position(c[1].position) - p0).cross(obj_position(c[2].position) - p0);
+      const float length = face_normal[t].norm();
+      face_direction[t] = length > 0.f ? Vector3f(face_normal[t] / length) : Vector3f::Zero();
+    }
+    computed_normals = smooth_normals(corners, position_count, needs_computed, face_normal, face_direction);
+  }  // the face normals' memory freed before the mesh's is taken
 
   Mesh mesh;
   const bool has_uvs = std::any_of(corners.begin(), corners.end(),
                                    [](const auto& c) { return c[0].uv >= 0 || c[1].uv >= 0 || c[2].uv >= 0; });
-  VertexTable vertex_of;
-  mesh.triangles.reserve(triangle_count);
-  for (int t = 0; t < triangle_count; ++t) {
-    Eigen::Vector3i triangle;
-    for (int k = 0; k < 3; ++k) {
-      const ObjCorner& corner = corners[t][k];
-      const bool computed = needs_computed[3 * t + k];
-      const Vector3f normal = computed ? computed_normals.normals[computed_normals.of_corner[3 * t + k]]
-                                       : file_normal(corner.normal);
-      const std::uint32_t normal_code =
-          computed ? kComputedNormal | static_cast<std::uint32_t>(computed_normals.of_corner[3 * t + k])
-                   : static_cast<std::uint32_t>(corner.normal);
-      const VertexKey key{{static_cast<std::uint32_t>(corner.position), static_cast<std::uint32_t>(corner.uv),
-                           normal_code}};
-      const auto [vertex, inserted] = vertex_of.find_or_insert(key, static_cast<int>(mesh.positions.size()));
-      if (inserted) {
-        if (mesh.positions.size() >= kMaxMeshVertices)
+  const auto normal_code = [&](std::size_t corner_index, const ObjCorner& corner) {
+    return needs_computed[corner_index]
+               ? kComputedNormal | static_cast<std::uint32_t>(computed_normals.of_corner[corner_index])
+               : static_cast<std::uint32_t>(corner.normal);
+  };
+  // The vertices' numbers first, then their attributes: the arrays are taken once, at their size.
+  {
+    VertexTable vertex_of(position_count);
+    int vertex_count = 0;
+    mesh.triangles.resize(triangle_count);
+    for (int t = 0; t < triangle_count; ++t) {
+      for (int k = 0; k < 3; ++k) {
+        const ObjCorner& corner = corners[t][k];
+        const VertexKey key{{static_cast<std::uint32_t>(corner.position), static_cast<std::uint32_t>(corner.uv),
+                             normal_code(3 * t + k, corner)}};
+        const auto [vertex, inserted] = vertex_of.find_or_insert(key, vertex_count);
+        if (inserted && static_cast<std::uint64_t>(vertex_count++) >= kMaxMeshVertices)
           fail(path, "too large: more than " + std::to_string(kMaxMeshVertices) +
                          " vertices (the limit; a vertex is a distinct position, texture coordinate and normal)");
-        mesh.positions.push_back(obj_position(corner.position));
-        mesh.normals.push_back(normal);
-        if (has_uvs)
-          mesh.uvs.push_back(corner.uv >= 0 ? Vector2f(attrib.texcoords[2 * corner.uv],
-                                                       1.f - attrib.texcoords[2 * corner.uv + 1])  // v up -> v down
-                                            : Vector2f::Zero());
+        mesh.triangles[t][k] = vertex;
       }
-      triangle[k] = vertex;
     }
-    mesh.triangles.push_back(triangle);
+    mesh.positions.reserve(vertex_count);
+    mesh.normals.reserve(vertex_count);
+    if (has_uvs) mesh.uvs.reserve(vertex_count);
+  }
+  for (int t = 0; t < triangle_count; ++t) {
+    for (int k = 0; k < 3; ++k) {
+      if (mesh.triangles[t][k] != static_cast<int>(mesh.positions.size())) continue;  // not its first corner
+      const ObjCorner& corner = corners[t][k];
+      mesh.positions.push_back(obj_position(corner.position));
+      mesh.normals.push_back(needs_computed[3 * t + k] ? computed_normals.normals[computed_normals.of_corner[3 * t + k]]
+                                                       : file_normal(corner.normal));
+      if (has_uvs)
+        mesh.uvs.push_back(corner.uv >= 0 ? Vector2f(obj.texcoords[2 * corner.uv],
+                                                     1.f - obj.texcoords[2 * corner.uv + 1])  // v up -> v down
+                                          : Vector2f::Zero());
+    }
   }
 
   // Only the materials the faces use, in MTL order; the default one last.
-  std::set<int> used(obj_material_of.begin(), obj_material_of.end());
+  std::set<int> used(obj.material_of.begin(), obj.material_of.end());
   std::map<int, int> mesh_material_of;
   TextureCache textures(path);
   for (const int obj_id : used) {
     if (obj_id < 0) continue;
     mesh_material_of[obj_id] = static_cast<int>(mesh.materials.size());
-    mesh.materials.push_back(convert_material(obj_materials[obj_id], mtl_reader.mtl_folder(obj_id), textures));
+    mesh.materials.push_back(convert_material(obj.materials[obj_id], mtl_reader->mtl_folder(obj_id), textures));
   }
   if (used.count(-1)) {
     mesh_material_of[-1] = static_cast<int>(mesh.materials.size());
     mesh.materials.push_back(default_material());
   }
-  for (const int obj_id : obj_material_of) mesh.material_ids.push_back(mesh_material_of[obj_id]);
+  mesh.material_ids.reserve(obj.material_of.size());
+  for (const int obj_id : obj.material_of) mesh.material_ids.push_back(mesh_material_of[obj_id]);
 
   try {
     mesh.validate();

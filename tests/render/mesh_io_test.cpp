@@ -2,7 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -489,6 +492,18 @@ TEST(MeshIo, SaveErrorsNameTheFile) {
   const std::string message = runtime_error_of([&] { save_obj(make_prop("mug"), unwritable); });
   EXPECT_NE(message.find(unwritable), std::string::npos) << message;
   EXPECT_NE(runtime_error_of([&] { save_obj(Mesh{}, (folder / "empty.obj").string()); }), "");
+}
+
+// load_mesh_file alone on the OBJ named by PROPCAM_OBJ_BENCH, for the figures in docs/budgets.md (peak memory:
+// run it under /usr/bin/time -v).
+TEST(MeshIo, DISABLED_MeasureLoadTime) {
+  const char* file = std::getenv("PROPCAM_OBJ_BENCH");
+  if (!file) GTEST_SKIP() << "PROPCAM_OBJ_BENCH names no .obj";
+  const auto start = std::chrono::steady_clock::now();
+  const Mesh mesh = load_mesh_file(file);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  std::printf("load_mesh_file: %.3f s, %zu triangles, %zu vertices\n", seconds, mesh.triangles.size(),
+              mesh.positions.size());
 }
 
 }  // namespace
