@@ -333,8 +333,19 @@ cv::Mat load_photo_reduced(const std::string& path, cv::Size size) {
     throw std::invalid_argument("load_photo_reduced: the size must lie within the photo's");
   // Separable area averaging: each band is reduced across by cv::resize
   // (INTER_AREA), then every input row adds to the output rows its unit
-  // interval overlaps, weighted by the overlap.
-  cv::Mat sum(size, CV_64FC3, cv::Scalar::all(0));
+  // interval overlaps, weighted by the overlap. An input row spans at most
+  // two output rows, and output rows complete in order: two rows of sums
+  // suffice (a 4096x4096 texture's whole sum would be 400 MB).
+  cv::Mat out(size, CV_32FC3);
+  cv::Mat sum(2, size.width, CV_64FC3, cv::Scalar::all(0));  // output row j in sum.row(j % 2)
+  int next_unwritten = 0;
+  const auto write_rows_before = [&](int end) {
+    for (; next_unwritten < std::min(end, size.height); ++next_unwritten) {
+      cv::Mat row = sum.row(next_unwritten % 2);
+      row.convertTo(out.row(next_unwritten), CV_32FC3);
+      row.setTo(cv::Scalar::all(0));
+    }
+  };
   const double rows_per_output = static_cast<double>(full.height) / size.height;
   cv::Mat across, across64;
   for (int y = 0; y < full.height; y += kBandRows) {
@@ -343,14 +354,15 @@ cv::Mat load_photo_reduced(const std::string& path, cv::Size size) {
     across.convertTo(across64, CV_64FC3);
     for (int r = 0; r < rows; ++r) {
       const double top = (y + r) / rows_per_output, bottom = (y + r + 1) / rows_per_output;  // in output rows
+      write_rows_before(static_cast<int>(top));
       for (int j = static_cast<int>(top); j < size.height && j < bottom; ++j) {
         const double overlap = std::min(bottom, j + 1.0) - std::max(top, static_cast<double>(j));
-        if (overlap > 0) cv::scaleAdd(across64.row(r), overlap, sum.row(j), sum.row(j));
+        cv::Mat row = sum.row(j % 2);
+        if (overlap > 0) cv::scaleAdd(across64.row(r), overlap, row, row);
       }
     }
   }
-  cv::Mat out;
-  sum.convertTo(out, CV_32FC3);
+  write_rows_before(size.height);
   return out;
 }
 

@@ -31,6 +31,8 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "propcam/capture/image_file.h"
+
 namespace propcam::render {
 namespace {
 
@@ -384,9 +386,7 @@ class TextureCache {
       if (!fs::is_regular_file(candidate, ec)) continue;
       const std::string key = candidate.lexically_normal().string();
       if (auto it = cache_.find(key); it != cache_.end()) return it->second;
-      const cv::Mat bgr = read_bounded(key, material);
-      if (bgr.empty()) fail(obj_path_, "cannot decode texture '" + key + "' of material '" + material + "'");
-      auto texture = std::make_shared<const cv::Mat>(bgr8_srgb_to_linear_rgb(bgr));
+      auto texture = std::make_shared<const cv::Mat>(read_bounded(key, material));
       cache_.emplace(key, texture);
       return texture;
     }
@@ -395,8 +395,9 @@ class TextureCache {
   }
 
  private:
-  // The image as cv::imread(IMREAD_COLOR) gives it, its longer side reduced to kMaxTextureSide. Its size is
-  // read from the header first, and pixels beyond kMaxTextureDecodePixels for the mesh are refused undecoded.
+  // The texture in linear RGB, its longer side reduced to kMaxTextureSide. Its size is read from the header
+  // first, and pixels beyond kMaxTextureDecodePixels for the mesh are refused undecoded. A JPEG over the side
+  // limit is decoded at 1/2, 1/4 or 1/8; another format is reduced while it is read, a band of rows at a time.
   cv::Mat read_bounded(const std::string& file, const std::string& material) {
     const std::string texture = "texture '" + file + "' of material '" + material + "'";
     std::uint64_t width = 0, height = 0;
@@ -412,6 +413,8 @@ class TextureCache {
     };
     const std::uint64_t budget = kMaxTextureDecodePixels - decoded_pixels_;
     const std::uint64_t long_side = std::max(width, height);
+    if (long_side > static_cast<std::uint64_t>(kMaxTextureSide) && !is_jpeg_file(file))
+      return read_reduced_while_read(file, texture, width, height, budget);
     std::uint64_t scale = 1;
     if (long_side > static_cast<std::uint64_t>(kMaxTextureSide) && is_jpeg_file(file)) {
       // The largest reduction that keeps the longer side at the limit or above; more only to fit the budget.
@@ -431,6 +434,7 @@ class TextureCache {
                       : scale == 2 ? cv::IMREAD_REDUCED_COLOR_2
                                    : cv::IMREAD_COLOR;
     cv::Mat bgr = cv::imread(file, flags);
+    if (bgr.empty()) fail(obj_path_, "cannot decode " + texture);
     const int decoded_side = std::max(bgr.cols, bgr.rows);
     if (decoded_side > kMaxTextureSide) {
       const double shrink = static_cast<double>(kMaxTextureSide) / decoded_side;
@@ -438,9 +442,32 @@ class TextureCache {
                           std::clamp(static_cast<int>(std::lround(bgr.rows * shrink)), 1, kMaxTextureSide));
       cv::Mat reduced;
       cv::resize(bgr, reduced, size, 0, 0, cv::INTER_AREA);  // averages sRGB values: 8 bits, not 32, per channel
-      return reduced;
+      return bgr8_srgb_to_linear_rgb(reduced);
     }
-    return bgr;
+    return bgr8_srgb_to_linear_rgb(bgr);
+  }
+
+  // Area-averaged to kMaxTextureSide on its longer side while it is read: memory for the result and one band.
+  cv::Mat read_reduced_while_read(const std::string& file, const std::string& texture, std::uint64_t width,
+                                  std::uint64_t height, std::uint64_t budget) {
+    if (width * height > kMaxTextureFilePixels)
+      fail(obj_path_, texture + " is too large: " + std::to_string(width) + "x" + std::to_string(height) +
+                          " pixels (a texture file may hold " + std::to_string(kMaxTextureFilePixels) + ")");
+    const double shrink = static_cast<double>(kMaxTextureSide) / static_cast<double>(std::max(width, height));
+    const cv::Size size(std::clamp(static_cast<int>(std::lround(static_cast<double>(width) * shrink)), 1, kMaxTextureSide),
+                        std::clamp(static_cast<int>(std::lround(static_cast<double>(height) * shrink)), 1, kMaxTextureSide));
+    const auto pixels = static_cast<std::uint64_t>(size.area());
+    if (pixels > budget)
+      fail(obj_path_, texture + " is too large: reduced to " + std::to_string(size.width) + "x" +
+                          std::to_string(size.height) + " it would hold " + std::to_string(pixels) +
+                          " pixels, and a mesh's textures may decode " + std::to_string(kMaxTextureDecodePixels) +
+                          " in all (" + std::to_string(decoded_pixels_) + " before it)");
+    decoded_pixels_ += pixels;
+    try {
+      return capture::load_photo_reduced(file, size);
+    } catch (const std::exception& e) {
+      fail(obj_path_, "cannot decode " + texture + ": " + e.what());
+    }
   }
 
   std::string obj_path_;

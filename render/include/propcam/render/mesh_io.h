@@ -32,10 +32,14 @@ inline constexpr std::uint64_t kMaxMeshMaterials = 4096;                   // ne
 // A texture whose longer side exceeds this is reduced on read (aspect kept, area-averaged): 4096 x 4096 as float
 // RGB is 192 MiB.
 inline constexpr int kMaxTextureSide = 4096;
-// Pixels decoded for one mesh's textures, counted from their headers before decoding: four 4096 x 4096 maps, or
-// one 8192 x 8192 PNG (which decodes whole before it is reduced). A JPEG over the side limit decodes at 1/2, 1/4
-// or 1/8 of its size, as small as keeps its longer side at kMaxTextureSide or above (smaller to fit the budget).
+// Pixels decoded for one mesh's textures, counted from their headers before decoding: four 4096 x 4096 maps. A
+// JPEG over the side limit decodes at 1/2, 1/4 or 1/8 of its size, as small as keeps its longer side at
+// kMaxTextureSide or above (smaller to fit the budget), and counts at that size; another format over it counts at
+// its reduced size.
 inline constexpr std::uint64_t kMaxTextureDecodePixels = std::uint64_t{1} << 26;
+// A texture file of another format over the side limit is reduced while it is read, a band of rows at a time
+// (memory for the reduced texture and one band; time linear in the file's pixels), up to this many pixels.
+inline constexpr std::uint64_t kMaxTextureFilePixels = std::uint64_t{1} << 28;  // 16384 x 16384
 
 // Loads an .obj file and the .mtl files it names. Polygons are triangulated and
 // corners with different position/uv/normal index triples become separate
