@@ -429,9 +429,8 @@ int cmd_composite(const CompositeArgs& a) {
                                             {"why", result.flattening.why}}},
                   {"depth_of_field", dof_json},
                   {"full_size_edges", {{"pixels", result.full_size_coverage.region.area()},
-                                       {"rays_per_pixel", result.full_size_coverage.empty()
-                                                              ? 0 : firmware::kSharpCoverageRaysPerSide *
-                                                                        firmware::kSharpCoverageRaysPerSide},
+                                       {"rays_per_pixel", result.full_size_coverage.rays_per_side *
+                                                              result.full_size_coverage.rays_per_side},
                                        {"seconds", result.full_size_coverage.seconds}}},
                   {"total_seconds", progress.elapsed()}};
   if (a.json_out) std::cout << summary.dump(2) << std::endl;

@@ -225,6 +225,13 @@ FullSizeDelivery::FullSizeDelivery(const cv::Mat& working_photo, const cv::Mat& 
   ys_ = taps(full_size.height, ws.height);
 }
 
+int sharp_coverage_rays_per_side(long region_pixels) {
+  if (region_pixels <= 0 || region_pixels > kMaxSharpCoveragePixels) return 0;
+  for (int n = kSharpCoverageRaysPerSide; n > 1; --n)
+    if (static_cast<long long>(n) * n * region_pixels <= kMaxSharpCoverageRays) return n;
+  return 1;
+}
+
 SharpCoverage full_size_prop_coverage(const render::Scene& world, const render::PinholeCamera& working_camera,
                                       const cv::Mat& working_coverage, cv::Size full_size,
                                       double blur_sigma_working_px) {
@@ -243,8 +250,11 @@ SharpCoverage full_size_prop_coverage(const render::Scene& world, const render::
                         static_cast<int>(std::ceil(seen.width * sx)), static_cast<int>(std::ceil(seen.height * sy)));
   sharp.region = (scaled + cv::Size(2 * margin, 2 * margin) - cv::Point(margin, margin)) &
                  cv::Rect(0, 0, full_size.width, full_size.height);
+  const int rays_per_side = sharp_coverage_rays_per_side(static_cast<long>(sharp.region.area()));
+  if (rays_per_side == 0) return {};
   const render::PinholeCamera full_camera = working_camera.resized(full_size.width, full_size.height);
-  sharp.coverage = render::render_prop_coverage(world, full_camera, sharp.region, kSharpCoverageRaysPerSide);
+  sharp.coverage = render::render_prop_coverage(world, full_camera, sharp.region, rays_per_side);
+  sharp.rays_per_side = rays_per_side;
   if (blur_sigma > kMinBlurSigma) cv::GaussianBlur(sharp.coverage, sharp.coverage, cv::Size(), blur_sigma);
   sharp.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return sharp;

@@ -47,12 +47,19 @@ cv::Mat reduce_to(const cv::Mat& photo, cv::Size size);
 struct SharpCoverage {
   cv::Rect region;
   cv::Mat coverage;
+  int rays_per_side = 0;
   double seconds = 0.0;  // to trace it
   bool empty() const { return coverage.empty(); }
 };
 
-// Rays per side of a full-size pixel for its prop coverage (9 levels of edge).
+// Rays per side of a full-size pixel for its prop coverage (9 levels of
+// edge), fewer over a larger region so that it costs at most about 36 M rays
+// and 64 MB; a region over kMaxSharpCoveragePixels is not traced (the
+// upsampled working coverage is used).
 inline constexpr int kSharpCoverageRaysPerSide = 3;
+inline constexpr long kMaxSharpCoveragePixels = 16'000'000L;
+inline constexpr long long kMaxSharpCoverageRays = 36'000'000LL;
+int sharp_coverage_rays_per_side(long region_pixels);  // 0: not traced
 
 // `world` holds the placed prop, `working_camera` renders the working size.
 // The coverage is softened by the photo's blur, `blur_sigma_working_px` in

@@ -346,7 +346,14 @@ class KillIo : public StorageIo {
   int steps_ = 0;
 };
 
-constexpr int kKillTrials = 50;
+// 50 in the suite; the campaign of the probe that found no fault in 520:
+// PROPCAM_KILL_TRIALS=520 ctest -R KillNine (about 8 minutes).
+int kill_trials() {
+  constexpr int kSuiteKillTrials = 50, kMaxKillTrials = 100000;
+  const char* text = std::getenv("PROPCAM_KILL_TRIALS");
+  const int asked = text ? std::atoi(text) : 0;
+  return asked > 0 ? std::min(asked, kMaxKillTrials) : kSuiteKillTrials;
+}
 constexpr int kItemsPerTrial = 3;
 constexpr unsigned kKillSeed = 20261201;
 
@@ -416,7 +423,8 @@ TEST(StorageFault, KillNineAtRandomPointsThenRestart) {
   ASSERT_GT(total_steps[0], 30);
   std::mt19937 random(kKillSeed);
   int killed = 0, leftovers = 0, cut_but_kept = 0;
-  for (int trial = 0; trial < kKillTrials; ++trial) {
+  const int trials = kill_trials();
+  for (int trial = 0; trial < trials; ++trial) {
     const bool late = trial % 2 == 1;
     // Now and then past the end: the child finishes.
     const int kill_at = std::uniform_int_distribution<int>(1, total_steps[late] + 3)(random);
@@ -470,7 +478,7 @@ TEST(StorageFault, KillNineAtRandomPointsThenRestart) {
   }
   // The trials did reach the interesting states: debris of a cut write to
   // clean up, and exports accepted but killed before they returned.
-  EXPECT_GE(killed, kKillTrials * 3 / 4);
+  EXPECT_GE(killed, trials * 3 / 4);
   EXPECT_GT(leftovers, 0);
   EXPECT_GT(cut_but_kept, 0);
   std::printf("kill trials: %d killed, %d left debris, %d cut after the spool accepted them\n", killed, leftovers,

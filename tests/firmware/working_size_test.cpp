@@ -82,6 +82,21 @@ TEST(WorkingSize, ASharpCoverageGivesThePropItsFullSizeEdge) {
   EXPECT_THROW(delivery.use_sharp_coverage(misplaced), std::invalid_argument);
 }
 
+// A prop filling a 200 MP photo must not cost 1.8 G rays and 800 MB.
+TEST(WorkingSize, TheRaysOfASharpCoverageAreBounded) {
+  EXPECT_EQ(sharp_coverage_rays_per_side(230'000), 3);
+  EXPECT_EQ(sharp_coverage_rays_per_side(4'000'000), 3);
+  EXPECT_EQ(sharp_coverage_rays_per_side(9'000'000), 2);
+  EXPECT_EQ(sharp_coverage_rays_per_side(16'000'000), 1);
+  EXPECT_EQ(sharp_coverage_rays_per_side(16'000'001), 0);
+  EXPECT_EQ(sharp_coverage_rays_per_side(200'000'000), 0);
+  EXPECT_EQ(sharp_coverage_rays_per_side(0), 0);
+  for (long pixels = 1; pixels <= kMaxSharpCoveragePixels; pixels *= 3) {
+    const int n = sharp_coverage_rays_per_side(pixels);
+    EXPECT_LE(static_cast<long long>(n) * n * pixels, kMaxSharpCoverageRays) << pixels;
+  }
+}
+
 TEST(WorkingSize, AShadowDarkensTheFullPhotosOwnDetail) {
   const cv::Mat full = textured(200, 150);
   const cv::Mat working = reduce_to(full, {50, 38});
