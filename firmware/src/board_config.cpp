@@ -10,7 +10,6 @@
 #include <nlohmann/json.hpp>
 
 #include "propcam/capture/frame.h"
-#include "propcam/inference/infer.h"
 
 namespace propcam::firmware {
 namespace fs = std::filesystem;
@@ -410,7 +409,7 @@ JobBudget read_budgets(const Checker& c, const json& root, const CameraConfig& c
   const json& j = c.object(root, "", "budgets");
   c.only_fields(j, ptr, {"working_size", "memory_mb", "render_seconds"});
   if (j.contains("working_size")) {
-    const Size s = c.size(j, ptr, "working_size", inference::kMinPhotoSide, kMaxWorkingSide);
+    const Size s = c.size(j, ptr, "working_size", kMinWorkingSide, kMaxWorkingSide);
     b.working_pixels = static_cast<long>(s.width) * s.height;
   }
   if (j.contains("memory_mb"))

@@ -125,6 +125,7 @@ inference::SceneModel infer_with_progress(const cv::Mat& photo, const std::strin
 // A photo larger than the working size (`--working-size`, a pixel budget
 // given as WxH) is inferred and rendered reduced to it (working_size.h); the
 // working size must fit `--memory-budget` (job_budget.h).
+static_assert(firmware::kMinWorkingSide == inference::kMinPhotoSide, "a working size inference can take");
 firmware::JobBudget job_budget_of(const std::string& working_size, long memory_mb, double render_seconds = 0) {
   firmware::JobBudget budget;
   budget.working_pixels = firmware::parse_working_size(working_size, "--working-size");

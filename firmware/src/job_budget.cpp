@@ -4,17 +4,15 @@
 #include <cstdio>
 #include <stdexcept>
 
-#include "propcam/inference/infer.h"
-
 namespace propcam::firmware {
 
 long parse_working_size(const std::string& text, const std::string& what) {
   int w = 0, h = 0;
   char x = 0, extra = 0;
   const bool parsed = std::sscanf(text.c_str(), "%d%c%d%c", &w, &x, &h, &extra) == 3 && x == 'x';
-  if (!parsed || w < inference::kMinPhotoSide || h < inference::kMinPhotoSide || w > kMaxWorkingSide ||
+  if (!parsed || w < kMinWorkingSide || h < kMinWorkingSide || w > kMaxWorkingSide ||
       h > kMaxWorkingSide)
-    throw std::invalid_argument(what + " expects WxH with each side in " + std::to_string(inference::kMinPhotoSide) +
+    throw std::invalid_argument(what + " expects WxH with each side in " + std::to_string(kMinWorkingSide) +
                                 ".." + std::to_string(kMaxWorkingSide) + ", got '" + text + "'");
   return static_cast<long>(w) * h;
 }

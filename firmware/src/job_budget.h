@@ -10,7 +10,6 @@
 // refused before any work starts, naming both.
 #pragma once
 
-#include <opencv2/core.hpp>
 #include <string>
 
 namespace propcam::firmware {
@@ -18,6 +17,7 @@ namespace propcam::firmware {
 // About 0.8 megapixels (1024x768): inference's figures and its ≤ 3 s are
 // measured at this size, and a 12 MP photo's working copy costs 9 MB.
 inline constexpr long kDefaultWorkingPixels = 1024L * 768L;
+inline constexpr int kMinWorkingSide = 16;  // inference's smallest photo side (kMinPhotoSide)
 inline constexpr int kMaxWorkingSide = 16384;
 
 inline constexpr long kDefaultMemoryBudgetMb = 512;
@@ -47,7 +47,7 @@ struct JobBudget {
   double render_seconds = kDefaultRenderSeconds;
 };
 
-// "WxH" -> pixels, each side in kMinPhotoSide..kMaxWorkingSide. Throws
+// "WxH" -> pixels, each side in kMinWorkingSide..kMaxWorkingSide. Throws
 // std::invalid_argument naming `what` (an option or a field) and the range.
 long parse_working_size(const std::string& text, const std::string& what);
 

@@ -843,7 +843,8 @@ class StreamingObj {
     auto& corners = out_.corners;
     bool dropped = false;
     std::size_t q = 0;
-    for (const auto& [end, position_count] : quad_flushes_) {
+    for (const auto& [end, positions_read] : quad_flushes_) {
+      const std::size_t position_count = positions_read;  // (clang 14 cannot capture a structured binding)
       for (; q < end; ++q) {
         const std::size_t slot = quads_[q];
         const ObjCorner c[4] = {corners[slot][0], corners[slot][1], corners[slot][2], corners[slot + 1][0]};
