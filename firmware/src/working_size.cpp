@@ -242,9 +242,8 @@ SharpCoverage full_size_prop_coverage(const render::Scene& world, const render::
   const double sx = static_cast<double>(full_size.width) / working_coverage.cols;
   const double sy = static_cast<double>(full_size.height) / working_coverage.rows;
   const double blur_sigma = std::max(0.0, blur_sigma_working_px) * sx;
-  // A working pixel beyond what it saw (a thin part its samples missed),
-  // and room for the blur's tail.
-  // (Within the reach of the prop's filled colour.)
+  // A working pixel beyond what it saw (a thin part its samples missed) and
+  // room for the blur's tail, within the reach of the prop's filled colour.
   const int margin = static_cast<int>(std::ceil(std::min(sx + 3.0 * blur_sigma, (kColourFillReach - 1) * sx))) + 1;
   const cv::Rect scaled(static_cast<int>(std::floor(seen.x * sx)), static_cast<int>(std::floor(seen.y * sy)),
                         static_cast<int>(std::ceil(seen.width * sx)), static_cast<int>(std::ceil(seen.height * sy)));

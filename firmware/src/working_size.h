@@ -5,8 +5,9 @@
 // Outside the prop the change is a ratio (a shadow darkens the photo's own
 // texture, a bounce brightens it), so the full-size photo keeps its detail;
 // the prop's own colour is rebuilt from the working composite and blended by
-// its upsampled coverage. Both are interpolated bilinearly, row by row, into
-// the full-size image in place: no full-size temporaries.
+// its coverage, traced at the full size around the prop (or upsampled). Both
+// are interpolated bilinearly, row by row, into the full-size image in place:
+// no full-size temporaries.
 #pragma once
 
 #include <opencv2/core.hpp>
@@ -36,11 +37,6 @@ cv::Size working_size(cv::Size full, long max_pixels);
 // `photo` reduced to `size` by area averaging (a copy when the size is its own).
 cv::Mat reduce_to(const cv::Mat& photo, cv::Size size);
 
-// Carries a working composite up to the full size, a band of rows at a
-// time. `working_photo` is the full photo reduced (CV_32FC3, the same linear
-// space as the full rows), `working_composite` its composite, `coverage`
-// (CV_32F) the share of each working pixel the prop covers. Where the
-// composite equals the photo, the full rows are left exactly as they are.
 // The prop's silhouette at the full size: its coverage from camera rays at
 // that size (CV_32F) over `region`, the full-size pixels around where the
 // working render saw it.
@@ -68,6 +64,11 @@ SharpCoverage full_size_prop_coverage(const render::Scene& world, const render::
                                       const cv::Mat& working_coverage, cv::Size full_size,
                                       double blur_sigma_working_px);
 
+// Carries a working composite up to the full size, a band of rows at a
+// time. `working_photo` is the full photo reduced (CV_32FC3, the same linear
+// space as the full rows), `working_composite` its composite, `coverage`
+// (CV_32F) the share of each working pixel the prop covers. Where the
+// composite equals the photo, the full rows are left exactly as they are.
 class FullSizeDelivery {
  public:
   FullSizeDelivery(const cv::Mat& working_photo, const cv::Mat& working_composite, const cv::Mat& coverage,
