@@ -58,18 +58,10 @@ float shininess_from_roughness(float alpha) {
   return 2.f / (a * a) - 2.f;
 }
 
-float srgb_to_linear(float encoded) {
-  return encoded <= 0.04045f ? encoded / 12.92f : std::pow((encoded + 0.055f) / 1.055f, 2.4f);
-}
-float linear_to_srgb(float linear) {
-  const float c = std::clamp(linear, 0.f, 1.f);
-  return c <= 0.0031308f ? 12.92f * c : 1.055f * std::pow(c, 1.f / 2.4f) - 0.055f;
-}
-
 // 8-bit sRGB BGR (as cv::imread returns it) -> linear RGB CV_32FC3.
 cv::Mat bgr8_srgb_to_linear_rgb(const cv::Mat& bgr) {
   std::array<float, 256> lut;
-  for (int i = 0; i < 256; ++i) lut[i] = srgb_to_linear(static_cast<float>(i) / 255.f);
+  for (int i = 0; i < 256; ++i) lut[i] = capture::srgb_to_linear(static_cast<float>(i) / 255.f);
   cv::Mat rgb(bgr.rows, bgr.cols, CV_32FC3);
   for (int y = 0; y < bgr.rows; ++y) {
     const auto* src = bgr.ptr<cv::Vec3b>(y);
@@ -85,7 +77,8 @@ cv::Mat linear_rgb_to_bgr8_srgb(const cv::Mat& rgb) {
     const auto* src = rgb.ptr<cv::Vec3f>(y);
     auto* dst = bgr.ptr<cv::Vec3b>(y);
     for (int x = 0; x < rgb.cols; ++x)
-      for (int c = 0; c < 3; ++c) dst[x][2 - c] = static_cast<uchar>(std::lround(255.f * linear_to_srgb(src[x][c])));
+      for (int c = 0; c < 3; ++c)
+        dst[x][2 - c] = static_cast<uchar>(std::lround(255.f * std::min(1.f, capture::linear_to_srgb(src[x][c]))));
   }
   return bgr;
 }
