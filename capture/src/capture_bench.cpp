@@ -17,6 +17,7 @@
 #include <thread>
 
 #include "capture_socket.h"
+#include "propcam/capture/frame.h"
 #include "propcam/capture/capture_client.h"
 
 namespace propcam::capture {
@@ -25,19 +26,15 @@ namespace {
 using detail::monotonic_ns;
 using Clock = std::chrono::steady_clock;
 
-// Bytes of a synthetic frame (frame_bytes() lives in another branch).
+// Bytes of a synthetic frame: packed rows (frame.h's bound), and none for
+// MJPEG (there is no JPEG to make).
 std::size_t synthetic_bytes(const StreamConfig& c) {
-  const std::size_t w = static_cast<std::size_t>(c.width), h = static_cast<std::size_t>(c.height);
-  switch (c.pixel_format) {
-    case PixelFormat::RGB24:
-    case PixelFormat::BGR24: return w * h * 3;
-    case PixelFormat::YUYV:
-    case PixelFormat::UYVY: return w * h * 2;
-    case PixelFormat::NV12: return w * h * 3 / 2;
-    case PixelFormat::GREY: return w * h;
-    case PixelFormat::MJPEG: return 0;
-  }
-  return 0;
+  if (c.pixel_format == PixelFormat::MJPEG) return 0;
+  FrameFormat format;
+  format.pixel_format = c.pixel_format;
+  format.width = c.width;
+  format.height = c.height;
+  return frame_bytes(format);
 }
 
 class SyntheticSource final : public FrameSource {

@@ -20,6 +20,7 @@
 #include <thread>
 
 #include "capture_socket.h"
+#include "propcam/capture/frame.h"
 #include "request_queue.h"
 
 namespace propcam::capture {
@@ -39,21 +40,20 @@ constexpr int kPacketsPerWakeup = 64;  // then other clients get their turn
 constexpr int kLoopWaitMs = 1000;       // the epoll thread's longest sleep
 constexpr std::size_t kPage = 4096;
 
-// Bytes a frame of this configuration needs (frame_bytes() lives in another
-// branch); MJPEG gets a generous bound and the ring grows if a frame exceeds it.
+// Bytes a frame of this configuration needs (frame.h's bound; MJPEG's is its
+// worst case, address space a ring slot only pays for where it is written).
+// A configuration frame.h refuses gets a page: its frames are refused anyway,
+// and the ring grows if one arrives larger.
 std::size_t expected_frame_bytes(const StreamConfig& c) {
-  const std::size_t w = static_cast<std::size_t>(std::max(c.width, 1));
-  const std::size_t h = static_cast<std::size_t>(std::max(c.height, 1));
-  switch (c.pixel_format) {
-    case PixelFormat::RGB24:
-    case PixelFormat::BGR24: return w * h * 3;
-    case PixelFormat::YUYV:
-    case PixelFormat::UYVY: return ((w + 1) / 2) * 4 * h;
-    case PixelFormat::NV12: return w * h + ((w + 1) / 2) * 2 * ((h + 1) / 2);
-    case PixelFormat::MJPEG: return w * h * 2;
-    case PixelFormat::GREY: return w * h;
+  FrameFormat format;
+  format.pixel_format = c.pixel_format;
+  format.width = c.width;
+  format.height = c.height;
+  try {
+    return frame_bytes(format);
+  } catch (const std::runtime_error&) {
+    return kPage;
   }
-  return w * h * 4;
 }
 
 std::size_t round_to_page(std::size_t n) { return std::max<std::size_t>(kPage, (n + kPage - 1) / kPage * kPage); }
