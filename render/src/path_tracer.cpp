@@ -567,11 +567,12 @@ cv::Mat render_prop_coverage(const Scene& scene, const PinholeCamera& camera, co
   if (r.empty()) return coverage;
   const Eigen::Vector3f origin = camera.center_world.cast<float>();
   const float per_ray = 1.f / static_cast<float>(rays_per_side * rays_per_side);
-  std::atomic<int> next_row{0};
-  auto worker = [&] {
-    for (int row; (row = next_row.fetch_add(1)) < r.height;) {
+  RenderSettings tiling;
+  tiling.threads = threads;
+  for_each_tile(r.width, r.height, tiling, [&](int x0, int y0, int x1, int y1) {
+    for (int row = y0; row < y1; ++row) {
       float* out = coverage.ptr<float>(row);
-      for (int x = 0; x < r.width; ++x) {
+      for (int x = x0; x < x1; ++x) {
         int hits = 0;
         for (int j = 0; j < rays_per_side; ++j)
           for (int i = 0; i < rays_per_side; ++i) {
@@ -585,14 +586,7 @@ cv::Mat render_prop_coverage(const Scene& scene, const PinholeCamera& camera, co
         out[x] = static_cast<float>(hits) * per_ray;
       }
     }
-  };
-  int count = threads > 0 ? threads : static_cast<int>(std::thread::hardware_concurrency());
-  count = std::clamp(count, 1, r.height);
-  {
-    std::vector<std::jthread> pool;
-    for (int i = 1; i < count; ++i) pool.emplace_back(worker);
-    worker();
-  }
+  });
   return coverage;
 }
 

@@ -17,16 +17,20 @@ namespace propcam::firmware {
 namespace {
 namespace fs = std::filesystem;
 
+SyntheticShot synthetic_room(int width, int height, std::uint64_t seed, int samples_per_pixel) {
+  render::SyntheticRoomSpec spec;
+  spec.width = width;
+  spec.height = height;
+  spec.seed = seed;
+  render::RenderSettings settings;
+  settings.samples_per_pixel = samples_per_pixel;
+  return shoot_synthetic_room(spec, settings);
+}
+
 class ApplianceShotTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    render::SyntheticRoomSpec spec;
-    spec.width = 160;
-    spec.height = 120;
-    spec.seed = 4;
-    render::RenderSettings settings;
-    settings.samples_per_pixel = 16;
-    const SyntheticShot shot = shoot_synthetic_room(spec, settings);
+    const SyntheticShot shot = synthetic_room(160, 120, 4, 16);
     auto a = std::make_shared<Analysis>();
     a->photo_linear = shot.photo_linear;
     a->scene = shot.truth;
@@ -250,13 +254,7 @@ TEST_F(ApplianceShotTest, AStillLargerThanTheWorkingSizeIsExportedAtItsOwnSize) 
 }
 
 TEST(AnalyseStill, AStillLargerThanTheWorkingSizeIsInferredReduced) {
-  render::SyntheticRoomSpec spec;
-  spec.width = 320;
-  spec.height = 240;
-  spec.seed = 5;
-  render::RenderSettings settings;
-  settings.samples_per_pixel = 4;
-  const SyntheticShot shot = shoot_synthetic_room(spec, settings);
+  const SyntheticShot shot = synthetic_room(320, 240, 5, 4);
   const Analysis a = analyse_still(shot.photo_linear, capture::linear_to_srgb8(shot.photo_linear), 1.5, 160 * 120,
                                    [](const std::string&) {});
   EXPECT_EQ(a.photo_linear.size(), cv::Size(160, 120));

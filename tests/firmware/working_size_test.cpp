@@ -28,14 +28,24 @@ TEST(WorkingSize, ReducesToTheBudgetKeepingTheAspect) {
   EXPECT_THROW(working_size({0, 10}, 100), std::invalid_argument);
 }
 
+// A textured photo worked at 50x38, and its composite: a red prop over the
+// working pixels (20..25, 15..20), the rest of the photo untouched.
+struct RedPropComposite {
+  cv::Mat full, working, composite, coverage;
+};
+RedPropComposite red_prop_composite(cv::Size full_size) {
+  RedPropComposite c;
+  c.full = textured(full_size.width, full_size.height);
+  c.working = reduce_to(c.full, {50, 38});
+  c.composite = c.working.clone();
+  c.coverage = cv::Mat(c.working.size(), CV_32F, cv::Scalar(0));
+  c.composite(cv::Rect(20, 15, 6, 6)).setTo(cv::Scalar(0.9, 0.1, 0.1));
+  c.coverage(cv::Rect(20, 15, 6, 6)).setTo(1.f);
+  return c;
+}
+
 TEST(WorkingSize, WhatThePropLeftAloneStaysBitForBit) {
-  const cv::Mat full = textured(200, 150);
-  const cv::Mat working = reduce_to(full, {50, 38});
-  cv::Mat composite = working.clone();
-  cv::Mat coverage(working.size(), CV_32F, cv::Scalar(0));
-  // A prop in the middle, and the rest of the photo untouched.
-  composite(cv::Rect(20, 15, 6, 6)).setTo(cv::Scalar(0.9, 0.1, 0.1));
-  coverage(cv::Rect(20, 15, 6, 6)).setTo(1.f);
+  const auto [full, working, composite, coverage] = red_prop_composite({200, 150});
   cv::Mat delivered = full.clone();
   deliver_at_full_size(delivered, working, composite, coverage);
   // Far from the prop (beyond one working pixel of interpolation) nothing moved.
@@ -51,12 +61,7 @@ TEST(WorkingSize, WhatThePropLeftAloneStaysBitForBit) {
 // Rendered at the full size, the prop's coverage puts its edge where it is,
 // not smeared over the working pixel it crosses.
 TEST(WorkingSize, ASharpCoverageGivesThePropItsFullSizeEdge) {
-  const cv::Mat full = textured(200, 152);
-  const cv::Mat working = reduce_to(full, {50, 38});
-  cv::Mat composite = working.clone();
-  cv::Mat coverage(working.size(), CV_32F, cv::Scalar(0));
-  composite(cv::Rect(20, 15, 6, 6)).setTo(cv::Scalar(0.9, 0.1, 0.1));
-  coverage(cv::Rect(20, 15, 6, 6)).setTo(1.f);
+  const auto [full, working, composite, coverage] = red_prop_composite({200, 152});
   // Its edge at the full size: column 81, inside the working pixel 20 (80..83).
   SharpCoverage sharp;
   sharp.region = cv::Rect(70, 50, 40, 40);
