@@ -35,8 +35,23 @@ json json_tail(const std::string& text) {
   return json::parse(text.substr(start));
 }
 
+// ctest runs each test in its own process, two at a time: every process gets
+// its own folder, so one test's fixture photo is never rewritten under another
+// test's composite. The folder goes when the process ends.
+const fs::path& process_temp_root() {
+  struct Root {
+    fs::path path = fs::path(::testing::TempDir()) / ("propcam_cli_" + std::to_string(::getpid()));
+    ~Root() {
+      std::error_code ignored;
+      fs::remove_all(path, ignored);
+    }
+  };
+  static const Root root;
+  return root.path;
+}
+
 std::string temp(const std::string& name) {
-  const fs::path p = fs::path(::testing::TempDir()) / "propcam_cli" / name;
+  const fs::path p = process_temp_root() / name;
   fs::create_directories(p.parent_path());
   return p.string();
 }
