@@ -12,9 +12,8 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 build=${1:-build/release}
 propcam="$build/firmware/propcam"
-# A fixed folder: scene.json keeps the paths it was written with.
-work=/tmp/propcam_same_outputs
-rm -rf "$work" && mkdir -p "$work"
+work=$(mktemp -d /tmp/propcam_same_outputs.XXXXXX)
+trap 'rm -rf "$work"' EXIT
 exec 2>/dev/null  # progress
 
 "$propcam" view /usr/share/blender/datafiles/studiolights/world/interior.exr \
@@ -39,7 +38,8 @@ run room cube 160,200
 
 cd "$work"
 # EXR files by their pixels (their headers carry the time they were written),
-# scene.json without the timings it keeps beside the estimates.
+# scene.json without the timings it keeps beside the estimates and with the
+# work folder's name (it keeps the paths it was written with) made neutral.
 for f in $(find . -path './scene_*' -type f ! -name '*.json' | sort); do
   printf '%s  %s\n' "$(oiiotool --info --hash "$f" | sed -n 's/.*SHA-1: //p')" "$f"
 done
@@ -51,6 +51,6 @@ def strip(v):
     if isinstance(v, list):
         return [strip(x) for x in v]
     return v
-print(json.dumps(strip(json.load(open(sys.argv[1]))), sort_keys=True))' "$j" | sha256sum | cut -d' ' -f1)" "$j"
+print(json.dumps(strip(json.load(open(sys.argv[1]))), sort_keys=True).replace(sys.argv[2], "WORK"))' "$j" "$work" | sha256sum | cut -d' ' -f1)" "$j"
 done
 sha256sum composite_*.png
