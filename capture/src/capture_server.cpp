@@ -20,12 +20,15 @@
 #include <thread>
 
 #include "capture_socket.h"
+#include "frame_ring.h"
+#include "listening_socket.h"
 #include "propcam/capture/frame.h"
 #include "request_queue.h"
 
 namespace propcam::capture {
 namespace {
 
+using detail::FrameRing;
 using detail::Mapping;
 using detail::monotonic_ns;
 using detail::Received;
@@ -38,25 +41,6 @@ constexpr std::uint64_t kWakeTag = 1;
 constexpr std::uint64_t kClientTag = std::uint64_t{1} << 32;
 constexpr int kPacketsPerWakeup = 64;  // then other clients get their turn
 constexpr int kLoopWaitMs = 1000;       // the epoll thread's longest sleep
-constexpr std::size_t kPage = 4096;
-
-// Bytes a frame of this configuration needs (frame.h's bound; MJPEG's is its
-// worst case, address space a ring slot only pays for where it is written).
-// A configuration frame.h refuses gets a page: its frames are refused anyway,
-// and the ring grows if one arrives larger.
-std::size_t expected_frame_bytes(const StreamConfig& c) {
-  FrameFormat format;
-  format.pixel_format = c.pixel_format;
-  format.width = c.width;
-  format.height = c.height;
-  try {
-    return frame_bytes(format);
-  } catch (const std::runtime_error&) {
-    return kPage;
-  }
-}
-
-std::size_t round_to_page(std::size_t n) { return std::max<std::size_t>(kPage, (n + kPage - 1) / kPage * kPage); }
 
 std::int64_t to_ns(std::chrono::milliseconds d) { return std::int64_t{d.count()} * 1'000'000; }
 
@@ -74,51 +58,6 @@ const char* status_name(CaptureStatus s) {
   }
   return "unknown";
 }
-
-sockaddr_un unix_address(const std::string& path) {
-  sockaddr_un addr{};
-  addr.sun_family = AF_UNIX;
-  if (path.empty() || path.size() >= sizeof addr.sun_path)
-    throw std::runtime_error("socket path empty or too long: " + path);
-  std::memcpy(addr.sun_path, path.c_str(), path.size() + 1);
-  return addr;
-}
-
-// True when something accepts connections at `path`.
-bool someone_listens(const std::string& path) {
-  UniqueFd probe(::socket(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC, 0));
-  if (!probe) detail::throw_errno("socket");
-  const sockaddr_un addr = unix_address(path);
-  int rc;
-  do rc = ::connect(probe.get(), reinterpret_cast<const sockaddr*>(&addr), sizeof addr);
-  while (rc != 0 && errno == EINTR);
-  if (rc == 0) return true;
-  if (errno == ECONNREFUSED || errno == ENOENT) return false;
-  if (errno == EPROTOTYPE) return true;  // a listener of another socket type: not ours to remove
-  detail::throw_errno("probing " + path);
-}
-
-std::optional<gid_t> group_id(const std::string& name) {
-  if (name.empty()) return std::nullopt;
-  group g{};
-  group* found = nullptr;
-  std::vector<char> buffer(16384);
-  if (::getgrnam_r(name.c_str(), &g, buffer.data(), buffer.size(), &found) != 0 || !found) return std::nullopt;
-  return g.gr_gid;
-}
-
-struct Slot {
-  std::vector<std::uint32_t> holders;  // client ids
-  bool writing = false;
-};
-
-struct Ring {
-  proto::RingInfo info;
-  UniqueFd fd;
-  Mapping map;
-  std::vector<Slot> slots;
-  std::uint32_t next = 0;  // round robin: the slot written longest ago is tried first
-};
 
 struct Client {
   std::uint32_t id = 0;
@@ -142,7 +81,7 @@ struct CaptureServer::Impl {
   mutable std::mutex mu;
   std::map<std::uint32_t, Client> clients;
   std::uint32_t next_client_id = 1;
-  std::unique_ptr<Ring> ring;
+  std::unique_ptr<FrameRing> ring;
   std::uint32_t next_generation = 1;
   std::string camera_id;
   StreamConfig stream_in_use;  // a copy of `config` for status()
@@ -170,13 +109,11 @@ struct CaptureServer::Impl {
   std::chrono::milliseconds backoff{0};
   std::chrono::steady_clock::time_point next_open{};
 
-  UniqueFd listen_fd, epoll_fd, wake_fd;
+  detail::ListeningSocket listener;
+  UniqueFd epoll_fd, wake_fd;
   std::thread camera_thread, loop_thread;
   std::int64_t next_idle_check = 0;  // epoll thread only
-  dev_t socket_dev = 0;
-  ino_t socket_ino = 0;
   bool started = false;
-  bool bound = false;  // the socket file is ours to remove
 
   std::mutex life_mu;
   std::condition_variable life_cv;
@@ -184,45 +121,6 @@ struct CaptureServer::Impl {
 
   void log(const std::string& line) const {
     if (opt.log) opt.log(line);
-  }
-
-  // ---- socket ---------------------------------------------------------------
-
-  void bind_socket() {
-    const std::string& path = opt.socket_path;
-    const sockaddr_un addr = unix_address(path);
-    const std::filesystem::path parent = std::filesystem::path(path).parent_path();
-    if (!parent.empty() && ::mkdir(parent.c_str(), 0755) != 0 && errno != EEXIST)
-      detail::throw_errno("creating " + parent.string());
-    struct stat st {};
-    if (::lstat(path.c_str(), &st) == 0) {
-      if (!S_ISSOCK(st.st_mode)) throw std::runtime_error(path + " exists and is not a socket");
-      if (someone_listens(path)) throw std::runtime_error("a server already listens on " + path);
-      if (::unlink(path.c_str()) != 0 && errno != ENOENT) detail::throw_errno("removing stale " + path);
-      log("removed stale socket " + path);
-    }
-    listen_fd.reset(::socket(AF_UNIX, SOCK_SEQPACKET | SOCK_NONBLOCK | SOCK_CLOEXEC, 0));
-    if (!listen_fd) detail::throw_errno("socket");
-    if (::bind(listen_fd.get(), reinterpret_cast<const sockaddr*>(&addr), sizeof addr) != 0)
-      detail::throw_errno("bind " + path);
-    if (::lstat(path.c_str(), &st) != 0) detail::throw_errno("stat " + path);
-    socket_dev = st.st_dev;
-    socket_ino = st.st_ino;
-    bound = true;
-    // Permissions before listen(), so nobody connects through a wider mode.
-    if (::chmod(path.c_str(), 0660) != 0) detail::throw_errno("chmod " + path);
-    if (const auto gid = group_id(opt.socket_group)) {
-      if (::chown(path.c_str(), static_cast<uid_t>(-1), *gid) != 0)
-        log("cannot give " + path + " to group " + opt.socket_group + ": " + std::strerror(errno));
-    }
-    if (::listen(listen_fd.get(), 16) != 0) detail::throw_errno("listen");
-  }
-
-  void remove_socket_file() {
-    struct stat st {};
-    // Only our own inode: a newer server may have replaced the file.
-    if (::lstat(opt.socket_path.c_str(), &st) == 0 && st.st_dev == socket_dev && st.st_ino == socket_ino)
-      ::unlink(opt.socket_path.c_str());
   }
 
   void wake_loop() {
@@ -235,9 +133,7 @@ struct CaptureServer::Impl {
   // ---- clients (mu held) ----------------------------------------------------
 
   void release_all_locked(Client& c) {
-    if (ring) {
-      for (auto& slot : ring->slots) std::erase(slot.holders, c.id);
-    }
+    if (ring) ring->release_all(c.id);
     c.held = 0;
   }
 
@@ -299,35 +195,14 @@ struct CaptureServer::Impl {
   // ---- ring (camera thread, mu held) ------------------------------------------
 
   void replace_ring_locked(std::size_t frame_bytes) {
-    auto r = std::make_unique<Ring>();
-    r->info.generation = next_generation++;
-    r->info.slot_count = static_cast<std::uint32_t>(std::clamp(opt.ring_slots, 1, 1024));
-    r->info.slot_bytes = round_to_page(frame_bytes);
-    const std::size_t total = r->info.slot_bytes * r->info.slot_count;
-    r->fd = detail::make_memfd("propcam-ring", total);
-    r->map = Mapping(r->fd.get(), total, true);
-    detail::seal_future_writes(r->fd.get());
-    r->slots.resize(r->info.slot_count);
-    ring = std::move(r);
+    ring = std::make_unique<FrameRing>(next_generation++, opt.ring_slots, frame_bytes);
     // Holds were on the old ring; clients keep their own mapping of it.
     for (auto& [id, c] : clients) c.held = 0;
-    broadcast_locked(proto::encode_ring_changed(ring->info), ring->fd.get());
+    broadcast_locked(proto::encode_ring_changed(ring->info()), ring->fd());
   }
 
   void ensure_ring_locked(std::size_t frame_bytes) {
-    if (!ring || ring->info.slot_bytes < frame_bytes) replace_ring_locked(frame_bytes);
-  }
-
-  std::optional<std::uint32_t> free_slot_locked() {
-    const auto n = static_cast<std::uint32_t>(ring->slots.size());
-    for (std::uint32_t k = 0; k < n; ++k) {
-      const std::uint32_t i = (ring->next + k) % n;
-      if (ring->slots[i].holders.empty() && !ring->slots[i].writing) {
-        ring->next = (i + 1) % n;
-        return i;
-      }
-    }
-    return std::nullopt;
+    if (!ring || ring->info().slot_bytes < frame_bytes) replace_ring_locked(frame_bytes);
   }
 
   // ---- camera thread ----------------------------------------------------------
@@ -335,7 +210,7 @@ struct CaptureServer::Impl {
   void publish(const Frame& frame) {
     const auto bytes = frame.data();
     std::uint32_t slot;
-    Ring* target;
+    FrameRing* target;
     {
       std::lock_guard lock(mu);
       ++frames_captured;
@@ -343,7 +218,7 @@ struct CaptureServer::Impl {
       arrivals.push_back(now);
       while (!arrivals.empty() && arrivals.front() <= now - 1'000'000'000) arrivals.pop_front();
       ensure_ring_locked(bytes.size());
-      const auto free = free_slot_locked();
+      const auto free = ring->claim_free_slot();
       if (!free) {
         ++frames_unplaced;
         for (auto& [id, c] : clients)
@@ -352,14 +227,13 @@ struct CaptureServer::Impl {
       }
       slot = *free;
       target = ring.get();  // only this thread replaces the ring
-      target->slots[slot].writing = true;
     }
     // The one copy, outside the lock: no client can hold a slot being written.
-    std::memcpy(target->map.data() + slot * target->info.slot_bytes, bytes.data(), bytes.size());
+    target->write(slot, bytes);
     std::lock_guard lock(mu);
-    target->slots[slot].writing = false;
+    target->finish_write(slot);
     proto::FrameReady ready;
-    ready.generation = target->info.generation;
+    ready.generation = target->info().generation;
     ready.slot = slot;
     ready.bytes_used = bytes.size();
     ready.format = frame.format;
@@ -376,7 +250,7 @@ struct CaptureServer::Impl {
     }
     switch (detail::send_packet(c.fd.get(), packet)) {
       case SendResult::Sent:
-        ring->slots[slot].holders.push_back(c.id);
+        ring->hold(slot, c.id);
         ++c.held;
         ++c.sent;
         c.stalled = 0;
@@ -425,7 +299,7 @@ struct CaptureServer::Impl {
     source = std::move(s);
     ended = false;
     CameraInfo camera = source->info();
-    const std::size_t expected = expected_frame_bytes(source->configuration());
+    const std::size_t expected = detail::expected_frame_bytes(source->configuration());
 
     const StreamConfig in_use = source->configuration();
     std::lock_guard lock(mu);
@@ -680,7 +554,7 @@ struct CaptureServer::Impl {
     }
     try {
       const auto bytes = r.frame->data();
-      const std::size_t size = round_to_page(bytes.size());
+      const std::size_t size = detail::round_to_page(bytes.size());
       UniqueFd fd = detail::make_memfd("propcam-still", size);
       {
         Mapping map(fd.get(), size, true);
@@ -709,7 +583,7 @@ struct CaptureServer::Impl {
 
   void accept_clients() {
     for (;;) {
-      UniqueFd fd(::accept4(listen_fd.get(), nullptr, nullptr, SOCK_NONBLOCK | SOCK_CLOEXEC));
+      UniqueFd fd(::accept4(listener.fd(), nullptr, nullptr, SOCK_NONBLOCK | SOCK_CLOEXEC));
       if (!fd) {
         if (errno == EINTR || errno == ECONNABORTED) continue;
         if (errno != EAGAIN && errno != EWOULDBLOCK) log(std::string("accept: ") + std::strerror(errno));
@@ -735,8 +609,8 @@ struct CaptureServer::Impl {
       proto::Welcome w;
       w.client_id = id;
       w.max_held_slots = static_cast<std::uint32_t>(opt.max_held_slots);
-      if (ring) w.ring = ring->info;
-      send_must_locked(c, proto::encode(0, w), ring ? ring->fd.get() : -1);
+      if (ring) w.ring = ring->info();
+      send_must_locked(c, proto::encode(0, w), ring ? ring->fd() : -1);
     }
   }
 
@@ -886,13 +760,12 @@ struct CaptureServer::Impl {
     const auto it = clients.find(id);
     if (it == clients.end() || it->second.dead) return;
     Client& c = it->second;
-    if (!ring || m.generation != ring->info.generation) return;  // a frame of an old ring: nothing to free
-    if (m.slot >= ring->slots.size()) return send_must_locked(c, proto::encode_error(rid, "slot index out of range"));
-    auto& holders = ring->slots[m.slot].holders;
-    const auto h = std::find(holders.begin(), holders.end(), id);
-    if (h == holders.end()) return send_must_locked(c, proto::encode_error(rid, "slot not held"));
-    holders.erase(h);
-    --c.held;
+    if (!ring || m.generation != ring->info().generation) return;  // a frame of an old ring: nothing to free
+    switch (ring->release(m.slot, id)) {
+      case FrameRing::Release::OutOfRange: return send_must_locked(c, proto::encode_error(rid, "slot index out of range"));
+      case FrameRing::Release::NotHeld: return send_must_locked(c, proto::encode_error(rid, "slot not held"));
+      case FrameRing::Release::Released: --c.held; return;
+    }
   }
 
   proto::Status status_snapshot(std::uint32_t you) const {
@@ -999,12 +872,12 @@ CaptureServer::~CaptureServer() { stop(); }
 void CaptureServer::start() {
   Impl& m = *impl_;
   if (m.started) throw std::logic_error("CaptureServer started twice");
-  m.bind_socket();
+  m.listener.bind(m.opt.socket_path, m.opt.socket_group, m.opt.log);
   m.epoll_fd.reset(::epoll_create1(EPOLL_CLOEXEC));
   if (!m.epoll_fd) detail::throw_errno("epoll_create1");
   m.wake_fd.reset(::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC));
   if (!m.wake_fd) detail::throw_errno("eventfd");
-  m.epoll_add(m.listen_fd.get(), kListenTag);
+  m.epoll_add(m.listener.fd(), kListenTag);
   m.epoll_add(m.wake_fd.get(), kWakeTag);
   m.started = true;
   m.camera_thread = std::thread([&m] { m.camera_loop(); });
@@ -1027,8 +900,8 @@ void CaptureServer::stop() {
     m.clients.clear();
     m.ring.reset();
   }
-  m.listen_fd.reset();
-  if (m.bound) m.remove_socket_file();
+  m.listener.close();
+  m.listener.remove_file();
   {
     std::lock_guard lock(m.life_mu);
     m.stopped = true;
