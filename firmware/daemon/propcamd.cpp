@@ -13,7 +13,7 @@
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
 
-#include "logging.h"
+#include "common/logging.h"
 
 #include <algorithm>
 #include <chrono>

@@ -11,7 +11,7 @@
 #include <mutex>
 #include <thread>
 
-#include "appliance_camera.h"
+#include "appliance/appliance_camera.h"
 #include "propcam/capture/camera_registry.h"
 #include "propcam/capture/capture_server.h"
 

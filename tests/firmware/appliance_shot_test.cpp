@@ -8,10 +8,10 @@
 #include <filesystem>
 #include <opencv2/imgproc.hpp>
 
-#include "appliance_shot.h"
+#include "appliance/appliance_shot.h"
 #include "propcam/capture/image_file.h"
 #include "propcam/render/props.h"
-#include "synthetic_truth.h"
+#include "worlds/synthetic_truth.h"
 
 namespace propcam::firmware {
 namespace {

@@ -7,7 +7,7 @@
 #include <random>
 #include <set>
 
-#include "appliance_state.h"
+#include "appliance/appliance_state.h"
 
 namespace propcam::appliance {
 namespace {

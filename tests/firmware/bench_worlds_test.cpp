@@ -10,9 +10,9 @@
 #include <nlohmann/json.hpp>
 #include <unistd.h>
 
-#include "bench_worlds.h"
+#include "world_bench/bench_worlds.h"
 #include "propcam/capture/image_file.h"
-#include "world_scenes.h"
+#include "worlds/world_scenes.h"
 
 namespace propcam::firmware {
 namespace {

@@ -8,11 +8,11 @@
 #include <filesystem>
 #include <nlohmann/json.hpp>
 
-#include "bench_worlds.h"
+#include "world_bench/bench_worlds.h"
 #include "cli_run.h"
-#include "light_training.h"
+#include "tools/light_training.h"
 #include "propcam/inference/scene_model.h"
-#include "world_scenes.h"
+#include "worlds/world_scenes.h"
 
 namespace propcam::firmware {
 namespace {

@@ -8,7 +8,7 @@
 #include <random>
 #include <unistd.h>
 
-#include "board_config.h"
+#include "common/board_config.h"
 
 namespace propcam::firmware {
 namespace {

@@ -7,7 +7,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "board_config.h"
+#include "common/board_config.h"
 
 namespace propcam::firmware {
 namespace {

@@ -6,7 +6,7 @@
 #include <fstream>
 #include <string>
 
-#include "board_lookup.h"
+#include "common/board_lookup.h"
 
 namespace {
 

@@ -13,11 +13,11 @@
 #include <optional>
 #include <opencv2/imgproc.hpp>
 
-#include "compositor.h"
+#include "common/compositor.h"
 #include "propcam/render/depth_mesh.h"
 #include "propcam/render/props.h"
 #include "propcam/render/render_session.h"
-#include "synthetic_truth.h"
+#include "worlds/synthetic_truth.h"
 
 namespace propcam::firmware {
 namespace {

@@ -4,9 +4,9 @@
 
 #include <cmath>
 
-#include "compositor.h"
+#include "common/compositor.h"
 #include "propcam/render/props.h"
-#include "synthetic_truth.h"
+#include "worlds/synthetic_truth.h"
 
 namespace propcam::firmware {
 namespace {

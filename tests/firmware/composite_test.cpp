@@ -2,10 +2,10 @@
 
 #include <opencv2/imgproc.hpp>
 
-#include "compositor.h"
+#include "common/compositor.h"
 #include "shadow_check.h"
 #include "propcam/inference/infer.h"
-#include "synthetic_truth.h"
+#include "worlds/synthetic_truth.h"
 
 namespace propcam::firmware {
 namespace {

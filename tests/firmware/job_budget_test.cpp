@@ -1,4 +1,4 @@
-#include "job_budget.h"
+#include "common/job_budget.h"
 
 #include <gtest/gtest.h>
 

@@ -4,7 +4,7 @@
 #include <memory>
 #include <numbers>
 
-#include "light_probe.h"
+#include "worlds/light_probe.h"
 #include "propcam/render/mesh_shapes.h"
 
 namespace propcam::firmware {

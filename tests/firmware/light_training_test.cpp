@@ -6,7 +6,7 @@
 
 #include <opencv2/core.hpp>
 
-#include "light_training.h"
+#include "tools/light_training.h"
 
 namespace propcam::firmware {
 namespace {

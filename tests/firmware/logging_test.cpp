@@ -10,7 +10,7 @@
 #include <filesystem>
 #include <string>
 
-#include "logging.h"
+#include "common/logging.h"
 
 namespace {
 

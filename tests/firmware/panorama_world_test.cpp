@@ -5,14 +5,14 @@
 #include <opencv2/imgproc.hpp>
 #include <unistd.h>
 
-#include "panorama_world.h"
+#include "world_bench/panorama_world.h"
 #include "propcam/capture/image_file.h"
 #include "propcam/inference/ibl_ranking.h"
 #include "propcam/inference/infer.h"
 #include "propcam/inference/light_classifier.h"
 #include "propcam/render/depth_mesh.h"
 #include "propcam/render/panorama.h"
-#include "real_views.h"
+#include "worlds/real_views.h"
 
 namespace propcam::firmware {
 namespace {

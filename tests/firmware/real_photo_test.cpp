@@ -6,13 +6,13 @@
 #include <filesystem>
 #include <opencv2/imgproc.hpp>
 
-#include "compositor.h"
+#include "common/compositor.h"
 #include "propcam/capture/image_file.h"
 #include "propcam/inference/infer.h"
 #include "propcam/inference/sky.h"
-#include "real_views.h"
+#include "worlds/real_views.h"
 #include "shadow_check.h"
-#include "synthetic_truth.h"
+#include "worlds/synthetic_truth.h"
 
 namespace propcam::firmware {
 namespace {

@@ -13,7 +13,7 @@
 
 #include "cli_run.h"
 #include "propcam/capture/image_file.h"
-#include "storage_names.h"
+#include "storage/storage_names.h"
 #include "storage_test_support.h"
 
 namespace {

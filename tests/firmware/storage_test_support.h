@@ -20,7 +20,7 @@
 #include <string>
 #include <vector>
 
-#include "storage_export.h"
+#include "storage/storage_export.h"
 
 namespace storage_test {
 

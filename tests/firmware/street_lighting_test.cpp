@@ -5,11 +5,11 @@
 #include <algorithm>
 #include <cmath>
 
-#include "compositor.h"
+#include "common/compositor.h"
 #include "propcam/inference/infer.h"
 #include "propcam/render/depth_mesh.h"
 #include "propcam/render/props.h"
-#include "synthetic_truth.h"
+#include "worlds/synthetic_truth.h"
 
 namespace propcam::firmware {
 namespace {

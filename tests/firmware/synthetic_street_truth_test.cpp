@@ -1,7 +1,7 @@
 #include <gtest/gtest.h>
 
 #include "propcam/render/depth_mesh.h"
-#include "synthetic_truth.h"
+#include "worlds/synthetic_truth.h"
 
 namespace propcam::firmware {
 namespace {

@@ -4,7 +4,7 @@
 
 #include <opencv2/imgproc.hpp>
 
-#include "working_size.h"
+#include "common/working_size.h"
 
 namespace propcam::firmware {
 namespace {

@@ -4,7 +4,7 @@
 #include <numbers>
 #include <opencv2/imgproc.hpp>
 
-#include "world_metrics.h"
+#include "worlds/world_metrics.h"
 
 namespace propcam::firmware {
 namespace {

@@ -3,7 +3,7 @@
 #include <cstdint>
 #include <exception>
 
-#include "board_config.h"
+#include "common/board_config.h"
 #include "fuzz_support.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {

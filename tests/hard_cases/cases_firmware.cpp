@@ -7,13 +7,13 @@
 
 #include <nlohmann/json.hpp>
 
-#include "appliance_shot.h"
-#include "board_config.h"
+#include "appliance/appliance_shot.h"
+#include "common/board_config.h"
 #include "catalogue.h"
-#include "compositor.h"
+#include "common/compositor.h"
 #include "propcam/capture/image_file.h"
-#include "storage_export.h"
-#include "synthetic_truth.h"
+#include "storage/storage_export.h"
+#include "worlds/synthetic_truth.h"
 
 namespace propcam::hard_cases {
 namespace {

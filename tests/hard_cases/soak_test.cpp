@@ -21,13 +21,13 @@
 #include <optional>
 #include <opencv2/imgproc.hpp>
 
-#include "appliance_camera.h"
-#include "appliance_shot.h"
+#include "appliance/appliance_camera.h"
+#include "appliance/appliance_shot.h"
 #include "propcam/capture/image_file.h"
 #include "propcam/capture/pixel_format.h"
 #include "propcam/capture/recording.h"
 #include "propcam/render/props.h"
-#include "storage_export.h"
+#include "storage/storage_export.h"
 
 namespace propcam::firmware {
 namespace {

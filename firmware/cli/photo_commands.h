@@ -1,0 +1,54 @@
+// `propcam infer` and `propcam composite`: a photo's scene model, and a prop
+// composited into the photo.
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <cstdint>
+#include <string>
+
+#include "cli/cli_options.h"
+#include "common/job_budget.h"
+#include "propcam/inference/infer.h"
+
+namespace propcam::firmware {
+
+// A calibrated lens (the board's calibration): its focal length in pixels at
+// the photo's resolution, a prior for the camera stage or, fixed, the focal length.
+// The lens: a calibrated focal length given on the command line wins;
+// otherwise the photo's EXIF focal length (if any) is the camera stage's
+// prior (not fixed: the lines may still overrule it).
+struct LensPrior {
+  double focal_px = 0;  // 0: none
+  bool fixed = false;
+  void apply(inference::CameraOptions& o, const std::string& photo_path = {}) const;
+};
+
+struct InferArgs {
+  std::string photo, out, lines_csv, size, working_size = "1024x768";
+  long memory_mb = firmware::kDefaultMemoryBudgetMb;
+  double camera_height = 1.5;
+  LensPrior lens;
+  bool json_out = false;
+};
+
+void add_infer_options(CLI::App& cmd, InferArgs& args);
+int run_infer_command(const InferArgs& args);
+
+struct CompositeArgs {
+  std::string photo, scene_dir, prop, at, out, material, albedo, save_scene, working_size = "1024x768";
+  long memory_mb = firmware::kDefaultMemoryBudgetMb;
+  double time_budget = firmware::kDefaultRenderSeconds;
+  double height = 0, yaw = 0, camera_height = 1.5;
+  LensPrior lens;
+  int spp = 16, bounces = kDefaultCliBounces;
+  uint64_t seed = 0x5eed;
+  bool json_out = false, explain = false, no_cull = false, no_denoise = false, no_camera_match = false;
+  double aperture = 0, focus = 0;
+  std::string light_scale;  // "I=S,I=S": relight after rendering
+  bool relight_scene = false;
+};
+
+void add_composite_options(CLI::App& cmd, CompositeArgs& args);
+int run_composite_command(const CompositeArgs& args);
+
+}  // namespace propcam::firmware
