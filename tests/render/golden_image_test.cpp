@@ -29,7 +29,6 @@
 #include "propcam/render/path_tracer.h"
 #include "propcam/render/props.h"
 #include "propcam/render/render_session.h"
-#include "propcam/render/synthetic_room.h"
 
 namespace propcam::render {
 namespace {
@@ -282,30 +281,37 @@ cv::Mat render_plastic_under_point_and_sun(const Variation& v) {
   return render_image(scene, camera_at({0.0, 1.0, 2.0}, -20.0, 45.0), lights, s);
 }
 
-// A cube composited into a rendered photo of a synthetic room by the
-// progressive differential session (tile culling, denoised), as `propcam
-// composite` does.
+// A cube composited into a rendered photo of a corner of a room (an area
+// light above, a dim sky) by the progressive differential session (tile
+// culling, denoised), as `propcam composite` does. The room is built here,
+// not by make_synthetic_room, whose colours come out of its random draws in
+// an order another compiler may change.
 cv::Mat render_differential_composite(const Variation& v) {
-  SyntheticRoomSpec spec;
-  spec.width = kWidth;
-  spec.height = kHeight;
-  spec.seed = 4;
-  SyntheticRoom room = make_synthetic_room(spec);
-  for (AreaLight& light : room.lights.area_lights) light.radiance *= v.light_scale;
   Scene scene;
-  scene.add_mesh(room.room, Layer::Background);
-  const int prop = scene.add_prop(make_prop("cube"), standing_at(room.free_floor_point + v.prop_offset, 1.5f, 20.f));
+  scene.add_mesh(floor_and_wall({0.45f, 0.33f, 0.22f}, {0.7f, 0.68f, 0.62f}), Layer::Background);
+  const int prop =
+      scene.add_prop(make_prop("cube"), standing_at(Eigen::Vector3f(0.3f, 0.f, 0.2f) + v.prop_offset, 1.5f, 20.f));
   scene.commit();
+  LightRig lights;
+  AreaLight panel;
+  panel.corner = {-0.6f, 2.2f, -0.6f};
+  panel.edge_u = {0.6f, 0.f, 0.f};
+  panel.edge_v = {0.f, 0.f, 0.6f};  // u x v = -Y: shines down
+  panel.radiance = Eigen::Vector3f(14.f, 13.f, 11.f) * v.light_scale;
+  lights.area_lights.push_back(panel);
+  lights.environment = std::make_shared<EnvironmentLight>(cv::Mat(8, 16, CV_32FC3, cv::Scalar(0.15, 0.17, 0.2)),
+                                                          Eigen::Vector3f::Constant(v.light_scale));
+  const PinholeCamera camera = camera_at({0.0, 1.3, 2.6}, -25.0, 55.0);
   // The photo is this renderer's too: a brighter light brightens it as well.
   RenderSettings photo_settings = settings_with_spp(16);
   photo_settings.seed = 7;  // the photo keeps its noise whatever the variation's seed
-  const cv::Mat photo = render_background_image(scene, room.camera, room.lights, photo_settings);
+  const cv::Mat photo = render_background_image(scene, camera, lights, photo_settings);
   SessionSettings session_settings;
   session_settings.render = settings_with_spp(16);
   session_settings.render.seed = v.seed;
   session_settings.max_samples_per_pixel = 16;
   session_settings.denoise = true;
-  RenderSession session(scene, room.camera, room.lights, photo, scene.world_bounds(prop), session_settings);
+  RenderSession session(scene, camera, lights, photo, scene.world_bounds(prop), session_settings);
   while (!session.finished()) session.run_pass();
   return session.composite();
 }
