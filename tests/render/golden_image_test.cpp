@@ -321,6 +321,9 @@ struct GoldenCase {
   cv::Mat (*render)(const Variation&);
 };
 
+// gtest prints a parameter in the test's listed name: the case's name, not its bytes.
+void PrintTo(const GoldenCase& c, std::ostream* out) { *out << c.name; }
+
 const std::vector<GoldenCase>& golden_cases() {
   static const std::vector<GoldenCase> cases = {
       {"diffuse_area_shadow", render_diffuse_area_shadow},
