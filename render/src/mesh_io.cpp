@@ -677,29 +677,42 @@ struct SmoothNormals {
   std::vector<Vector3f> normals;  // distinct (in bits) at each position, so an index stands for the bits in a key
 };
 
-// `needed` per corner; `face_normal` per triangle (length 2 * area), `face_direction` its unit vector or zero.
-SmoothNormals smooth_normals(const BulkVector<std::array<ObjCorner, 3>>& corners, int position_count,
-                             const BulkVector<char>& needed, const BulkVector<Vector3f>& face_normal,
-                             const BulkVector<Vector3f>& face_direction) {
+// The corners around each position, in triangle order, for the positions where some corner needs a normal:
+// position p's are around[offsets[p]] to around[offsets[p + 1] - 1].
+struct CornersAround {
+  BulkVector<int> offsets, around;
+};
+
+CornersAround corners_around_positions(const BulkVector<std::array<ObjCorner, 3>>& corners, int position_count,
+                                       const BulkVector<char>& needed) {
   const int corner_count = static_cast<int>(3 * corners.size());
-  // The corners around each position, in triangle order, for the positions that need a normal.
   BulkVector<char> position_needed(position_count, 0);
   for (int c = 0; c < corner_count; ++c)
     if (needed[c]) position_needed[corners[c / 3][c % 3].position] = 1;
-  BulkVector<int> offsets(position_count + 1, 0);
+  CornersAround out{BulkVector<int>(position_count + 1, 0), {}};
+  BulkVector<int>& offsets = out.offsets;
   for (int c = 0; c < corner_count; ++c) {
     const int p = corners[c / 3][c % 3].position;
     if (position_needed[p]) ++offsets[p + 1];
   }
   for (int p = 0; p < position_count; ++p) offsets[p + 1] += offsets[p];
-  BulkVector<int> around(offsets.back());
-  {
-    BulkVector<int> fill(offsets.begin(), offsets.end() - 1);
-    for (int c = 0; c < corner_count; ++c) {
-      const int p = corners[c / 3][c % 3].position;
-      if (position_needed[p]) around[fill[p]++] = c;
-    }
+  out.around.resize(offsets.back());
+  BulkVector<int> fill(offsets.begin(), offsets.end() - 1);
+  for (int c = 0; c < corner_count; ++c) {
+    const int p = corners[c / 3][c % 3].position;
+    if (position_needed[p]) out.around[fill[p]++] = c;
   }
+  return out;
+}
+
+// `needed` per corner; `face_normal` per triangle (length 2 * area), `face_direction` its unit vector or zero.
+SmoothNormals smooth_normals(const BulkVector<std::array<ObjCorner, 3>>& corners, int position_count,
+                             const BulkVector<char>& needed, const BulkVector<Vector3f>& face_normal,
+                             const BulkVector<Vector3f>& face_direction) {
+  const int corner_count = static_cast<int>(3 * corners.size());
+  const CornersAround corners_around = corners_around_positions(corners, position_count, needed);
+  const BulkVector<int>& offsets = corners_around.offsets;
+  const BulkVector<int>& around = corners_around.around;
 
   SmoothNormals out;
   out.of_corner.assign(corner_count, -1);
@@ -833,6 +846,20 @@ class StreamingObj {
   // After the parse: the quads split, those LoadObj drops dropped.
   void finish() {
     flush();
+    if (split_quads()) remove_dropped_quads();
+  }
+
+ private:
+  static constexpr int kDropped = -2;  // material_of of a dropped quad's two slots
+
+  // LoadObj's fixIndex: 1-based, negative counts back from the records read so far; 0 (absent here) -> -1.
+  static int resolved(int index, std::size_t count) {
+    return index > 0 ? index - 1 : index < 0 ? static_cast<int>(count) + index : -1;
+  }
+
+  // Each quad split along its shorter diagonal as LoadObj splits it at its flush, or marked kDropped where it names
+  // a position not read by then; whether any was dropped.
+  bool split_quads() {
     auto& corners = out_.corners;
     bool dropped = false;
     std::size_t q = 0;
@@ -863,7 +890,12 @@ class StreamingObj {
         }
       }
     }
-    if (!dropped) return;
+    return dropped;
+  }
+
+  // The triangles left when the dropped quads' slots are taken out, in order.
+  void remove_dropped_quads() {
+    auto& corners = out_.corners;
     std::size_t kept = 0;
     for (std::size_t t = 0; t < corners.size(); ++t) {
       if (out_.material_of[t] == kDropped) continue;
@@ -872,14 +904,6 @@ class StreamingObj {
     }
     corners.resize(kept);
     out_.material_of.resize(kept);
-  }
-
- private:
-  static constexpr int kDropped = -2;  // material_of of a dropped quad's two slots
-
-  // LoadObj's fixIndex: 1-based, negative counts back from the records read so far; 0 (absent here) -> -1.
-  static int resolved(int index, std::size_t count) {
-    return index > 0 ? index - 1 : index < 0 ? static_cast<int>(count) + index : -1;
   }
 
   void face(const tinyobj::index_t* indices, int count) {
@@ -1093,9 +1117,11 @@ class StagedFiles {
   std::vector<std::pair<fs::path, fs::path>> staged_;
 };
 
-}  // namespace
+// ---------------------------------------------------------------------------
+// Loading: the steps of load_mesh_file
 
-Mesh load_mesh_file(const std::string& path) {
+// The file opened for reading, after the checks that need no parse.
+std::ifstream open_obj(const std::string& path) {
   const fs::path file(path);
   std::error_code ec;
   if (!fs::exists(file, ec)) fail(path, "no such file");
@@ -1106,27 +1132,37 @@ Mesh load_mesh_file(const std::string& path) {
   if (extension != ".obj") fail(path, "unsupported format '" + extension + "' (expected .obj)");
   std::ifstream in(file, std::ios::binary);
   if (!in) fail(path, std::string("cannot open: ") + std::strerror(errno));
+  return in;
+}
 
-  // The budget, from a first cheap pass over the text.
-  const ObjCensus census = census_obj(in);
+// The budget, from the census: refused before anything is parsed.
+void check_census(const std::string& path, const ObjCensus& census) {
   if (census.triangles > kMaxMeshTriangles)
     fail(path, count_over_limit(census.triangles, "triangles", kMaxMeshTriangles));
   for (const auto& [count, what] : {std::pair{census.positions, "vertex positions ('v' lines)"},
                                     std::pair{census.uvs, "texture coordinates ('vt' lines)"},
                                     std::pair{census.normals, "normals ('vn' lines)"}})
     if (count > kMaxMeshVertices) fail(path, count_over_limit(count, what, kMaxMeshVertices));
+}
+
+// The OBJ streamed where that reads what LoadObj reads, else through LoadObj;
+// `mtl_reader` is left as the one that read its materials.
+ObjContent read_obj(const std::string& path, std::istream& in, const ObjCensus& census,
+                    std::optional<MtlFileReader>& mtl_reader) {
+  const fs::path folder = fs::path(path).parent_path();
   in.clear();
   in.seekg(0);
-  std::optional<MtlFileReader> mtl_reader(std::in_place, path, file.parent_path());
+  mtl_reader.emplace(path, folder);
   std::optional<ObjContent> read = read_obj_streaming(in, census, *mtl_reader);
-  if (!read) {
-    in.clear();
-    in.seekg(0);
-    mtl_reader.emplace(path, file.parent_path());
-    read = read_obj_with_load_obj(path, in, census, *mtl_reader);
-  }
-  ObjContent& obj = *read;
+  if (read) return std::move(*read);
+  in.clear();
+  in.seekg(0);
+  mtl_reader.emplace(path, folder);
+  return read_obj_with_load_obj(path, in, census, *mtl_reader);
+}
 
+// Every record finite, every corner naming one, and some face.
+void check_obj(const std::string& path, const ObjContent& obj) {
   const auto all_finite = [](const std::vector<float>& values) {
     return std::all_of(values.begin(), values.end(), [](float v) { return std::isfinite(v); });
   };
@@ -1136,18 +1172,7 @@ Mesh load_mesh_file(const std::string& path) {
   const int position_count = static_cast<int>(obj.positions.size() / 3);
   const int normal_count = static_cast<int>(obj.normals.size() / 3);
   const int uv_count = static_cast<int>(obj.texcoords.size() / 2);
-  const auto obj_position = [&](int i) {
-    return Vector3f(obj.positions[3 * i], obj.positions[3 * i + 1], obj.positions[3 * i + 2]);
-  };
-  // Unit normal from the file, or zero when the corner has none (or a zero one).
-  const auto file_normal = [&](int i) {
-    if (i < 0) return Vector3f(Vector3f::Zero());
-    const Vector3f n(obj.normals[3 * i], obj.normals[3 * i + 1], obj.normals[3 * i + 2]);
-    return n.norm() > 1e-12f ? Vector3f(n.normalized()) : Vector3f(Vector3f::Zero());
-  };
-
-  const BulkVector<std::array<ObjCorner, 3>>& corners = obj.corners;
-  for (const auto& triangle : corners) {
+  for (const auto& triangle : obj.corners) {
     for (const ObjCorner& corner : triangle) {
       if (corner.position < 0 || corner.position >= position_count)
         fail(path, "face refers to vertex " + std::to_string(corner.position + 1) + " but the file has " +
@@ -1160,82 +1185,111 @@ Mesh load_mesh_file(const std::string& path) {
                        std::to_string(uv_count));
     }
   }
-  if (corners.empty()) fail(path, "no triangles (the file has no faces)");
+  if (obj.corners.empty()) fail(path, "no triangles (the file has no faces)");
+}
 
-  // Which corners need a computed normal; then the face normals (length = 2 * area) for them, only if any do.
+Vector3f obj_position(const ObjContent& obj, int i) {
+  return Vector3f(obj.positions[3 * i], obj.positions[3 * i + 1], obj.positions[3 * i + 2]);
+}
+
+// Unit normal from the file, or zero when the corner has none (or a zero one).
+Vector3f file_normal(const ObjContent& obj, int i) {
+  if (i < 0) return Vector3f(Vector3f::Zero());
+  const Vector3f n(obj.normals[3 * i], obj.normals[3 * i + 1], obj.normals[3 * i + 2]);
+  return n.norm() > 1e-12f ? Vector3f(n.normalized()) : Vector3f(Vector3f::Zero());
+}
+
+// Per corner (3 * triangle + k): whether its normal is computed, and the computed ones.
+struct CornerNormals {
+  BulkVector<char> needs_computed;
+  SmoothNormals computed;
+};
+
+// Which corners need a computed normal; then the face normals (length = 2 * area) for them, only if any do
+// (freed on return, before the mesh's memory is taken).
+CornerNormals corner_normals(const ObjContent& obj) {
+  const BulkVector<std::array<ObjCorner, 3>>& corners = obj.corners;
   const int triangle_count = static_cast<int>(corners.size());
-  BulkVector<char> needs_computed(3 * static_cast<std::size_t>(triangle_count));
+  CornerNormals out{BulkVector<char>(3 * static_cast<std::size_t>(triangle_count)), {}};
   bool needs_computed_normals = false;
   for (int t = 0; t < triangle_count; ++t) {
     for (int k = 0; k < 3; ++k) {
-      needs_computed[3 * t + k] = file_normal(corners[t][k].normal).isZero();
-      needs_computed_normals = needs_computed_normals || needs_computed[3 * t + k];
+      out.needs_computed[3 * t + k] = file_normal(obj, corners[t][k].normal).isZero();
+      needs_computed_normals = needs_computed_normals || out.needs_computed[3 * t + k];
     }
   }
-  SmoothNormals computed_normals;
-  if (needs_computed_normals) {
-    BulkVector<Vector3f> face_normal(triangle_count), face_direction(triangle_count);
-    for (int t = 0; t < triangle_count; ++t) {
-      const auto& c = corners[t];
-      const Vector3f p0 = obj_position(c[0].position);
-      face_normal[t] = (obj_position(c[1].position) - p0).cross(obj_position(c[2].position) - p0);
-      const float length = face_normal[t].norm();
-      face_direction[t] = length > 0.f ? Vector3f(face_normal[t] / length) : Vector3f::Zero();
-    }
-    computed_normals = smooth_normals(corners, position_count, needs_computed, face_normal, face_direction);
-  }  // the face normals' memory freed before the mesh's is taken
+  if (!needs_computed_normals) return out;
+  BulkVector<Vector3f> face_normal(triangle_count), face_direction(triangle_count);
+  for (int t = 0; t < triangle_count; ++t) {
+    const auto& c = corners[t];
+    const Vector3f p0 = obj_position(obj, c[0].position);
+    face_normal[t] = (obj_position(obj, c[1].position) - p0).cross(obj_position(obj, c[2].position) - p0);
+    const float length = face_normal[t].norm();
+    face_direction[t] = length > 0.f ? Vector3f(face_normal[t] / length) : Vector3f::Zero();
+  }
+  out.computed = smooth_normals(corners, static_cast<int>(obj.positions.size() / 3), out.needs_computed, face_normal,
+                                face_direction);
+  return out;
+}
 
-  Mesh mesh;
-  const bool has_uvs = std::any_of(corners.begin(), corners.end(),
-                                   [](const auto& c) { return c[0].uv >= 0 || c[1].uv >= 0 || c[2].uv >= 0; });
+// The mesh's triangles as vertex numbers, a vertex per distinct position, uv and normal; the attribute arrays
+// reserved for them (taken once, at their size).
+void number_vertices(const std::string& path, const ObjContent& obj, const CornerNormals& normals, bool has_uvs,
+                    Mesh& mesh) {
   const auto normal_code = [&](std::size_t corner_index, const ObjCorner& corner) {
-    return needs_computed[corner_index]
-               ? kComputedNormal | static_cast<std::uint32_t>(computed_normals.of_corner[corner_index])
+    return normals.needs_computed[corner_index]
+               ? kComputedNormal | static_cast<std::uint32_t>(normals.computed.of_corner[corner_index])
                : static_cast<std::uint32_t>(corner.normal);
   };
-  // The vertices' numbers first, then their attributes: the arrays are taken once, at their size.
-  {
-    VertexTable vertex_of(position_count);
-    int vertex_count = 0;
-    mesh.triangles.resize(triangle_count);
-    for (int t = 0; t < triangle_count; ++t) {
-      for (int k = 0; k < 3; ++k) {
-        const ObjCorner& corner = corners[t][k];
-        const VertexKey key{{static_cast<std::uint32_t>(corner.position), static_cast<std::uint32_t>(corner.uv),
-                             normal_code(3 * t + k, corner)}};
-        const auto [vertex, inserted] = vertex_of.find_or_insert(key, vertex_count);
-        if (inserted && static_cast<std::uint64_t>(vertex_count++) >= kMaxMeshVertices)
-          fail(path, "too large: more than " + std::to_string(kMaxMeshVertices) +
-                         " vertices (the limit; a vertex is a distinct position, texture coordinate and normal)");
-        mesh.triangles[t][k] = vertex;
-      }
+  const int triangle_count = static_cast<int>(obj.corners.size());
+  VertexTable vertex_of(obj.positions.size() / 3);
+  int vertex_count = 0;
+  mesh.triangles.resize(triangle_count);
+  for (int t = 0; t < triangle_count; ++t) {
+    for (int k = 0; k < 3; ++k) {
+      const ObjCorner& corner = obj.corners[t][k];
+      const VertexKey key{{static_cast<std::uint32_t>(corner.position), static_cast<std::uint32_t>(corner.uv),
+                           normal_code(3 * t + k, corner)}};
+      const auto [vertex, inserted] = vertex_of.find_or_insert(key, vertex_count);
+      if (inserted && static_cast<std::uint64_t>(vertex_count++) >= kMaxMeshVertices)
+        fail(path, "too large: more than " + std::to_string(kMaxMeshVertices) +
+                       " vertices (the limit; a vertex is a distinct position, texture coordinate and normal)");
+      mesh.triangles[t][k] = vertex;
     }
-    mesh.positions.reserve(vertex_count);
-    mesh.normals.reserve(vertex_count);
-    if (has_uvs) mesh.uvs.reserve(vertex_count);
   }
+  mesh.positions.reserve(vertex_count);
+  mesh.normals.reserve(vertex_count);
+  if (has_uvs) mesh.uvs.reserve(vertex_count);
+}
+
+// Each vertex's position, normal and uv, from the first corner that names it.
+void fill_vertices(const ObjContent& obj, const CornerNormals& normals, bool has_uvs, Mesh& mesh) {
+  const int triangle_count = static_cast<int>(obj.corners.size());
   for (int t = 0; t < triangle_count; ++t) {
     for (int k = 0; k < 3; ++k) {
       if (mesh.triangles[t][k] != static_cast<int>(mesh.positions.size())) continue;  // not its first corner
-      const ObjCorner& corner = corners[t][k];
-      mesh.positions.push_back(obj_position(corner.position));
-      mesh.normals.push_back(needs_computed[3 * t + k] ? computed_normals.normals[computed_normals.of_corner[3 * t + k]]
-                                                       : file_normal(corner.normal));
+      const ObjCorner& corner = obj.corners[t][k];
+      mesh.positions.push_back(obj_position(obj, corner.position));
+      mesh.normals.push_back(normals.needs_computed[3 * t + k]
+                                 ? normals.computed.normals[normals.computed.of_corner[3 * t + k]]
+                                 : file_normal(obj, corner.normal));
       if (has_uvs)
         mesh.uvs.push_back(corner.uv >= 0 ? Vector2f(obj.texcoords[2 * corner.uv],
                                                      1.f - obj.texcoords[2 * corner.uv + 1])  // v up -> v down
                                           : Vector2f::Zero());
     }
   }
+}
 
-  // Only the materials the faces use, in MTL order; the default one last.
+// Only the materials the faces use, in MTL order; the default one last.
+void add_used_materials(const std::string& path, const ObjContent& obj, const MtlFileReader& mtl_reader, Mesh& mesh) {
   std::set<int> used(obj.material_of.begin(), obj.material_of.end());
   std::map<int, int> mesh_material_of;
   TextureCache textures(path);
   for (const int obj_id : used) {
     if (obj_id < 0) continue;
     mesh_material_of[obj_id] = static_cast<int>(mesh.materials.size());
-    mesh.materials.push_back(convert_material(obj.materials[obj_id], mtl_reader->mtl_folder(obj_id), textures));
+    mesh.materials.push_back(convert_material(obj.materials[obj_id], mtl_reader.mtl_folder(obj_id), textures));
   }
   if (used.count(-1)) {
     mesh_material_of[-1] = static_cast<int>(mesh.materials.size());
@@ -1243,7 +1297,24 @@ Mesh load_mesh_file(const std::string& path) {
   }
   mesh.material_ids.reserve(obj.material_of.size());
   for (const int obj_id : obj.material_of) mesh.material_ids.push_back(mesh_material_of[obj_id]);
+}
 
+}  // namespace
+
+Mesh load_mesh_file(const std::string& path) {
+  std::ifstream in = open_obj(path);
+  const ObjCensus census = census_obj(in);  // a first cheap pass over the text
+  check_census(path, census);
+  std::optional<MtlFileReader> mtl_reader;
+  const ObjContent obj = read_obj(path, in, census, mtl_reader);
+  check_obj(path, obj);
+  const CornerNormals normals = corner_normals(obj);
+  Mesh mesh;
+  const bool has_uvs = std::any_of(obj.corners.begin(), obj.corners.end(),
+                                   [](const auto& c) { return c[0].uv >= 0 || c[1].uv >= 0 || c[2].uv >= 0; });
+  number_vertices(path, obj, normals, has_uvs, mesh);
+  fill_vertices(obj, normals, has_uvs, mesh);
+  add_used_materials(path, obj, *mtl_reader, mesh);
   try {
     mesh.validate();
   } catch (const std::exception& e) {

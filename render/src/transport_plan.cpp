@@ -43,42 +43,46 @@ std::string percent(double v) {
   return out.str();
 }
 
-}  // namespace
-
-TransportPlan plan_transport(const Scene& scene, const LightRig& lights, const RenderSettings& base,
-                             const PlanOptions& options) {
-  TransportPlan plan;
-  plan.settings = base;
-  plan.original_light_count = lights.count();
-
-  // What the props are made of, where they are, how big.
-  Eigen::AlignedBox3f props;
+// What the props are made of, where they are, how big.
+struct PropSummary {
+  Eigen::AlignedBox3f bounds;
   bool glossy = false, specular = false;
   float max_reflectance = 0.f;
   std::vector<std::string> glossy_names;
+};
+
+PropSummary summarise_props(const Scene& scene) {
+  PropSummary props;
   for (int i = 0; i < scene.mesh_count(); ++i) {
     if (scene.layer(i) != Layer::Prop) continue;
-    props.extend(scene.world_bounds(i));
+    props.bounds.extend(scene.world_bounds(i));
     for (const Material& m : scene.mesh(i).materials) {
       const bool is_glossy = m.type == Material::Type::Plastic || m.type == Material::Type::Metal ||
                              m.type == Material::Type::Dielectric;
       if (is_glossy) {
-        glossy = true;
-        glossy_names.push_back(m.name.empty() ? to_string(m.type) : m.name);
+        props.glossy = true;
+        props.glossy_names.push_back(m.name.empty() ? to_string(m.type) : m.name);
       }
       if ((m.type == Material::Type::Metal || m.type == Material::Type::Dielectric) && m.roughness < kSpecularMaxRoughness)
-        specular = true;
+        props.specular = true;
       const float reflectance = m.type == Material::Type::Dielectric ? 1.f : m.albedo.maxCoeff();
-      max_reflectance = std::max(max_reflectance, m.type == Material::Type::Emissive ? 1.f : reflectance);
+      props.max_reflectance = std::max(props.max_reflectance, m.type == Material::Type::Emissive ? 1.f : reflectance);
     }
   }
-  const bool have_props = !props.isEmpty();
-  const Vector3f centre = have_props ? Vector3f(props.center()) : Vector3f(Vector3f::Zero());
-  const float radius = have_props ? 0.5f * props.sizes().norm() : 0.f;
+  return props;
+}
 
-  // Irradiance each light gives the props (upper bounds, facing the light).
+// Irradiance each light gives the props (upper bounds, facing the light) and
+// the solid angle it subtends there, in the rig's order.
+struct LightAtProps {
+  std::vector<double> irradiance, solid_angle;
+};
+
+LightAtProps light_at_props(const LightRig& lights, const Vector3f& centre, float radius) {
   const int n = lights.count();
-  std::vector<double> irradiance(n, 0.0), solid_angle(n, 0.0);
+  LightAtProps at{std::vector<double>(n, 0.0), std::vector<double>(n, 0.0)};
+  std::vector<double>& irradiance = at.irradiance;
+  std::vector<double>& solid_angle = at.solid_angle;
   int index = 0;
   for (const AreaLight& l : lights.area_lights) {
     const double d2 = std::max<double>((l.centre() - centre).squaredNorm(), radius * radius + 1e-6);
@@ -116,13 +120,21 @@ TransportPlan plan_transport(const Scene& scene, const LightRig& lights, const R
     solid_angle[index] = 4 * kPi;
     irradiance[index] = kPi * (0.2126 * mean[0] * scale.x() + 0.7152 * mean[1] * scale.y() + 0.0722 * mean[2] * scale.z());
   }
+  return at;
+}
+
+// Each light's share of the irradiance at the props.
+std::vector<double> light_shares(const std::vector<double>& irradiance) {
   double total = 0;
   for (double e : irradiance) total += std::max(0.0, e);
-  plan.light_share.assign(n, 0.0);
-  for (int i = 0; i < n; ++i) plan.light_share[i] = total > 0 ? std::max(0.0, irradiance[i]) / total : 0.0;
+  std::vector<double> share(irradiance.size(), 0.0);
+  for (size_t i = 0; i < irradiance.size(); ++i) share[i] = total > 0 ? std::max(0.0, irradiance[i]) / total : 0.0;
+  return share;
+}
 
-  // Lights: keep those that matter at the props.
-  index = 0;
+// Lights: keep those that matter at the props.
+void prune_lights(const LightRig& lights, const PlanOptions& options, bool have_props, TransportPlan& plan) {
+  int index = 0;
   auto keep = [&](int i) {
     const bool kept = !options.allow_skips || !options.prune_lights || !have_props ||
                       plan.light_share[i] >= options.min_light_share;
@@ -144,24 +156,29 @@ TransportPlan plan_transport(const Scene& scene, const LightRig& lights, const R
   for (const PointLight& l : lights.point_lights)
     if (keep(index++)) plan.lights.point_lights.push_back(l);
   if (lights.environment && keep(index++)) plan.lights.environment = lights.environment;
+}
 
-  // Glossy paths: only materials that need them have them; say which.
-  if (glossy) {
+// Glossy paths: only materials that need them have them; say which.
+void decide_glossy(const PropSummary& props, TransportPlan& plan) {
+  if (props.glossy) {
     std::string names;
-    for (size_t i = 0; i < glossy_names.size() && i < 3; ++i) names += (i ? ", " : "") + glossy_names[i];
+    for (size_t i = 0; i < props.glossy_names.size() && i < 3; ++i) names += (i ? ", " : "") + props.glossy_names[i];
     plan.decisions.push_back({"glossy", true, "the prop has glossy materials (" + names + ")"});
   } else {
     plan.decisions.push_back({"glossy", false, "every prop material is diffuse: no glossy lobe to sample"});
   }
+}
 
-  // Caustics: a specular prop under a small strong light.
+// Caustics: a specular prop under a small strong light.
+void decide_caustics(const PropSummary& props, const std::vector<double>& solid_angle, const PlanOptions& options,
+                     TransportPlan& plan) {
   int focusing_light = -1;
-  for (int i = 0; i < n; ++i)
+  for (size_t i = 0; i < solid_angle.size(); ++i)
     if (solid_angle[i] < options.small_light_solid_angle_sr && plan.light_share[i] >= options.strong_light_share)
-      focusing_light = i;
+      focusing_light = static_cast<int>(i);
   if (!options.allow_skips || !options.skip_caustics) {
     plan.decisions.push_back({"caustics", plan.settings.caustics, "not planned (as set)"});
-  } else if (!specular) {
+  } else if (!props.specular) {
     plan.settings.caustics = false;
     plan.decisions.push_back({"caustics", false, "no smooth metal or glass on the prop"});
   } else if (focusing_light < 0) {
@@ -172,21 +189,42 @@ TransportPlan plan_transport(const Scene& scene, const LightRig& lights, const R
     plan.decisions.push_back({"caustics", true, "smooth metal/glass under light " + std::to_string(focusing_light) +
                                                     " (" + percent(plan.light_share[focusing_light]) + " of the light)"});
   }
+}
 
-  // The prop's bounce light onto the photo: at most reflectance x the share
-  // of the hemisphere it fills at its base.
-  const double bounce = max_reflectance * kContactHemisphereShare;
+// The prop's bounce light onto the photo: at most reflectance x the share
+// of the hemisphere it fills at its base.
+void decide_interreflection(const PropSummary& props, const PlanOptions& options, TransportPlan& plan) {
+  const double bounce = props.max_reflectance * kContactHemisphereShare;
   if (!options.allow_skips || !options.skip_interreflection) {
     plan.decisions.push_back({"prop_interreflection", plan.settings.prop_interreflection, "not planned (as set)"});
-  } else if (have_props && bounce < options.min_visible_change) {
+  } else if (!props.bounds.isEmpty() && bounce < options.min_visible_change) {
     plan.settings.prop_interreflection = false;
     plan.decisions.push_back({"prop_interreflection", false,
-                              "the prop reflects at most " + percent(max_reflectance) + ": its bounce light changes the floor by < " +
-                                  percent(options.min_visible_change)});
+                              "the prop reflects at most " + percent(props.max_reflectance) +
+                                  ": its bounce light changes the floor by < " + percent(options.min_visible_change)});
   } else {
     plan.decisions.push_back({"prop_interreflection", true,
                               "the prop's bounce light can change nearby surfaces by up to " + percent(bounce)});
   }
+}
+
+}  // namespace
+
+TransportPlan plan_transport(const Scene& scene, const LightRig& lights, const RenderSettings& base,
+                             const PlanOptions& options) {
+  TransportPlan plan;
+  plan.settings = base;
+  plan.original_light_count = lights.count();
+  const PropSummary props = summarise_props(scene);
+  const bool have_props = !props.bounds.isEmpty();
+  const Vector3f centre = have_props ? Vector3f(props.bounds.center()) : Vector3f(Vector3f::Zero());
+  const float radius = have_props ? 0.5f * props.bounds.sizes().norm() : 0.f;
+  const LightAtProps at_props = light_at_props(lights, centre, radius);
+  plan.light_share = light_shares(at_props.irradiance);
+  prune_lights(lights, options, have_props, plan);
+  decide_glossy(props, plan);
+  decide_caustics(props, at_props.solid_angle, options, plan);
+  decide_interreflection(props, options, plan);
   return plan;
 }
 
