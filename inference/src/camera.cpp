@@ -318,261 +318,195 @@ double centre_std(Matrix6d information, double log_f_prior_sigma, double centre_
   return largest > 0 && std::isfinite(largest) ? std::sqrt(largest) : std::numeric_limits<double>::infinity();
 }
 
-}  // namespace
+// The prior focal length and the tolerances every step measures with.
+struct SearchScale {
+  double prior_f = 0.0;             // pixels
+  double tol_px = 0.0;              // inlier tolerance, pixels
+  double tol2 = 0.0;                // squared tolerance, normalised units
+  double centre_prior_sigma = 0.0;  // principal point prior, normalised units
+  double g_min = 1.0, g_max = 1.0;  // focal search range over the prior
+};
 
-const char* to_string(CameraCase c) {
-  switch (c) {
-    case CameraCase::ThreeVanishingPoints: return "three_vanishing_points";
-    case CameraCase::TwoVanishingPoints: return "two_vanishing_points";
-    case CameraCase::VerticalOnly: return "vertical_only";
-    case CameraCase::HorizontalOnly: return "horizontal_only";
-    case CameraCase::NoVanishingPoints: return "no_vanishing_points";
-  }
-  return "no_vanishing_points";
-}
-
-std::vector<LineSegment> detect_lines(const cv::Mat& photo_linear, const LineDetectionOptions& options,
-                                      StageReport& report) {
-  const auto start = std::chrono::steady_clock::now();
-  report.stage = "lines";
-  std::vector<LineSegment> out;
-  if (photo_linear.empty() || photo_linear.cols < 8 || photo_linear.rows < 8) {
-    report.usable = false;
-    report.why = "image too small for line detection";
-    return out;
-  }
-  cv::Mat grey;
-  cv::cvtColor(photo_linear, grey, cv::COLOR_RGB2GRAY);
-  // LSD works on display-referred intensities: gamma-encode and scale to 8 bits.
-  cv::Mat encoded;
-  cv::pow(cv::max(grey, 0.0), 1.0 / 2.2, encoded);
-  encoded.convertTo(encoded, CV_8U, 255.0);
-  auto lsd = cv::createLineSegmentDetector(cv::LSD_REFINE_STD);
-  std::vector<cv::Vec4f> raw;
-  lsd->detect(encoded, raw);
-  const double min_length = options.min_length_fraction * std::hypot(photo_linear.cols, photo_linear.rows);
-  for (const auto& r : raw) {
-    LineSegment l{{r[0] - 0.5, r[1] - 0.5}, {r[2] - 0.5, r[3] - 0.5}};  // LSD: pixel corners at integers
-    if (l.length() >= min_length && l.a.allFinite() && l.b.allFinite()) out.push_back(l);
-  }
-  std::sort(out.begin(), out.end(), [](const auto& p, const auto& q) { return p.length() > q.length(); });
-  if (static_cast<int>(out.size()) > options.max_lines) out.resize(options.max_lines);
-  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  report.usable = !out.empty();
-  report.why = out.empty() ? "no line segments found" : std::to_string(out.size()) + " segments";
-  report.details = {{"raw_segments", raw.size()}, {"kept", out.size()}};
-  return out;
-}
-
-std::vector<LineSegment> read_lines_csv(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw std::runtime_error("cannot open lines file '" + path + "'");
-  std::vector<LineSegment> lines;
-  std::string row;
-  int line_number = 0;
-  while (std::getline(in, row)) {
-    ++line_number;
-    if (row.find_first_not_of(" \t\r") == std::string::npos) continue;
-    std::replace(row.begin(), row.end(), ',', ' ');
-    std::istringstream fields(row);
-    double v[4];
-    if (!(fields >> v[0] >> v[1] >> v[2] >> v[3])) {
-      if (line_number == 1) continue;  // header
-      throw std::runtime_error(path + ":" + std::to_string(line_number) + ": expected x1,y1,x2,y2");
-    }
-    LineSegment l{{v[0], v[1]}, {v[2], v[3]}};
-    if (l.a.allFinite() && l.b.allFinite() && l.length() > 0) lines.push_back(l);
-  }
-  return lines;
-}
-
-std::vector<LineSegment> read_lines_nyu(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw std::runtime_error("cannot open lines file '" + path + "'");
-  std::string row;
-  if (!std::getline(in, row)) throw std::runtime_error(path + ": empty file (expected a header)");
-  // Column positions from the header.
-  std::vector<std::string> names;
-  {
-    std::istringstream header(row);
-    for (std::string name; header >> name;) names.push_back(name);
-  }
-  const auto column = [&](const char* name, bool required) {
-    const auto it = std::find(names.begin(), names.end(), name);
-    if (it == names.end()) {
-      if (required) throw std::runtime_error(path + ": header has no column '" + name + "'");
-      return -1;
-    }
-    return static_cast<int>(it - names.begin());
-  };
-  const int x1 = column("point1_x", true), y1 = column("point1_y", true), z1 = column("point1_z", false);
-  const int x2 = column("point2_x", true), y2 = column("point2_y", true), z2 = column("point2_z", false);
-  const int needed = std::max({x1, y1, z1, x2, y2, z2}) + 1;
-  std::vector<LineSegment> lines;
-  std::vector<double> v;
-  int line_number = 1;
-  while (std::getline(in, row)) {
-    ++line_number;
-    if (row.find_first_not_of(" \t\r") == std::string::npos) continue;
-    std::istringstream fields(row);
-    v.clear();
-    for (double x; static_cast<int>(v.size()) < needed && fields >> x;) v.push_back(x);
-    if (static_cast<int>(v.size()) < needed)
-      throw std::runtime_error(path + ":" + std::to_string(line_number) + ": expected " + std::to_string(needed) +
-                               " numbers");
-    const double w1 = z1 >= 0 ? v[z1] : 1.0, w2 = z2 >= 0 ? v[z2] : 1.0;
-    if (w1 == 0.0 || w2 == 0.0) continue;  // an endpoint at infinity is no segment
-    LineSegment l{{v[x1] / w1, v[y1] / w1}, {v[x2] / w2, v[y2] / w2}};
-    if (l.a.allFinite() && l.b.allFinite() && l.length() > 0) lines.push_back(l);
-  }
-  return lines;
-}
-
-CameraEstimate estimate_camera(const std::vector<LineSegment>& input, int width, int height,
-                               const CameraOptions& options) {
-  const auto start = std::chrono::steady_clock::now();
-  if (width <= 0 || height <= 0) throw std::invalid_argument("estimate_camera: image size must be positive");
-  CameraEstimate est;
-  est.cx = (width - 1) / 2.0;
-  est.cy = (height - 1) / 2.0;
-  const double prior_f = options.prior_focal_px > 0 && std::isfinite(options.prior_focal_px)
-                             ? options.prior_focal_px
-                             : kDefaultFocalOverSide * std::max(width, height);
-  const double tol_px = options.inlier_distance_px > 0 && std::isfinite(options.inlier_distance_px)
-                            ? options.inlier_distance_px
-                            : std::max(kMinInlierDistancePx, kInlierDistanceOfDiagonal * std::hypot(width, height));
-  const double tol = tol_px / prior_f;  // normalised units
-  const double tol2 = tol * tol;
+SearchScale search_scale(int width, int height, const CameraOptions& options) {
+  SearchScale s;
+  s.prior_f = options.prior_focal_px > 0 && std::isfinite(options.prior_focal_px)
+                  ? options.prior_focal_px
+                  : kDefaultFocalOverSide * std::max(width, height);
+  s.tol_px = options.inlier_distance_px > 0 && std::isfinite(options.inlier_distance_px)
+                 ? options.inlier_distance_px
+                 : std::max(kMinInlierDistancePx, kInlierDistanceOfDiagonal * std::hypot(width, height));
+  const double tol = s.tol_px / s.prior_f;  // normalised units
+  s.tol2 = tol * tol;
   // Prior on the principal point (normalised units): the image centre.
-  const double centre_prior_sigma = kCentrePriorOfDiagonal * std::hypot(width, height) / prior_f;
-  const double g_min = options.fixed_focal ? 1.0 : kMinFocalRatio;
-  const double g_max = options.fixed_focal ? 1.0 : kMaxFocalRatio;
+  s.centre_prior_sigma = kCentrePriorOfDiagonal * std::hypot(width, height) / s.prior_f;
+  s.g_min = options.fixed_focal ? 1.0 : kMinFocalRatio;
+  s.g_max = options.fixed_focal ? 1.0 : kMaxFocalRatio;
+  return s;
+}
 
-  // 1. Usable segments, in normalised coordinates (pixels from the principal
-  //    point over the prior focal length).
+// 1. Usable segments, in normalised coordinates (pixels from the principal
+//    point over the prior focal length).
+std::vector<Line> usable_lines(const std::vector<LineSegment>& input, int width, int height, const Vector2d& centre,
+                               const SearchScale& scale) {
   std::vector<Line> all;
-  {
-    const double ox = kMaxOutsideFraction * width, oy = kMaxOutsideFraction * height;
-    const auto inside = [&](const Eigen::Vector2d& p) {
-      return p.allFinite() && p.x() >= -ox && p.x() <= width - 1 + ox && p.y() >= -oy && p.y() <= height - 1 + oy;
-    };
-    const Vector2d centre(est.cx, est.cy);
-    const double min_length =
-        std::max(kMinSegmentOfDiagonal * std::hypot(width, height), kMinSegmentOverTolerance * tol_px);
-    for (size_t i = 0; i < input.size(); ++i) {
-      const LineSegment& s = input[i];
-      if (!inside(s.a) || !inside(s.b) || !(s.length() >= min_length)) continue;
-      const Vector2d a = (s.a - centre) / prior_f, b = (s.b - centre) / prior_f;
-      Line l;
-      l.index = static_cast<int>(i);
-      l.mid = 0.5 * (a + b);
-      l.dir = (b - a).normalized();
-      l.half = 0.5 * (b - a).norm();
-      l.hom = Vector3d(a.x(), a.y(), 1.0).cross(Vector3d(b.x(), b.y(), 1.0));
-      l.hom /= l.hom.head<2>().norm();
-      l.weight = s.length();
-      all.push_back(l);
-    }
+  const double prior_f = scale.prior_f;
+  const double ox = kMaxOutsideFraction * width, oy = kMaxOutsideFraction * height;
+  const auto inside = [&](const Eigen::Vector2d& p) {
+    return p.allFinite() && p.x() >= -ox && p.x() <= width - 1 + ox && p.y() >= -oy && p.y() <= height - 1 + oy;
+  };
+  const double min_length =
+      std::max(kMinSegmentOfDiagonal * std::hypot(width, height), kMinSegmentOverTolerance * scale.tol_px);
+  for (size_t i = 0; i < input.size(); ++i) {
+    const LineSegment& s = input[i];
+    if (!inside(s.a) || !inside(s.b) || !(s.length() >= min_length)) continue;
+    const Vector2d a = (s.a - centre) / prior_f, b = (s.b - centre) / prior_f;
+    Line l;
+    l.index = static_cast<int>(i);
+    l.mid = 0.5 * (a + b);
+    l.dir = (b - a).normalized();
+    l.half = 0.5 * (b - a).norm();
+    l.hom = Vector3d(a.x(), a.y(), 1.0).cross(Vector3d(b.x(), b.y(), 1.0));
+    l.hom /= l.hom.head<2>().norm();
+    l.weight = s.length();
+    all.push_back(l);
   }
+  return all;
+}
+
+// The kMaxSearchLines longest lines (ties keep their order).
+std::vector<Line> longest_lines(const std::vector<Line>& all) {
   std::vector<Line> search = all;
   std::stable_sort(search.begin(), search.end(), [](const Line& p, const Line& q) { return p.weight > q.weight; });
   if (search.size() > static_cast<size_t>(kMaxSearchLines)) search.resize(kMaxSearchLines);
+  return search;
+}
 
-  // 2. Vanishing-point candidates: intersections of length-weighted random
-  //    pairs of segments (homogeneous, so points at infinity are ordinary),
-  //    each with its soft, length-weighted support; up to `candidate_vps` are
-  //    picked by greedy coverage and refitted to their inliers.
-  std::mt19937_64 rng(options.seed);
-  std::vector<Vector3d> kept;
-  int candidates_sampled = 0;
-  if (search.size() >= 2) {
-    std::vector<double> cumulative;
-    double total = 0;
-    for (const auto& l : search) cumulative.push_back(total += l.weight);
-    std::uniform_real_distribution<double> u(0.0, total);
-    const auto pick = [&] {
-      const auto it = std::upper_bound(cumulative.begin(), cumulative.end(), u(rng));
-      return std::min<size_t>(it - cumulative.begin(), search.size() - 1);
-    };
-    // Each candidate's positive votes, sparse: (line, vote).
-    std::vector<Vector3d> candidates;
-    std::vector<std::vector<std::pair<int, double>>> votes;
-    const auto votes_of = [&](const Vector3d& v) {
-      std::vector<std::pair<int, double>> out;
-      for (size_t i = 0; i < search.size(); ++i) {
-        const double s = vote(search[i], v, tol2);
-        if (s > 0) out.emplace_back(static_cast<int>(i), s);
-      }
-      return out;
-    };
-    const int samples = std::clamp(options.ransac_iterations, 0, kMaxSamples);
-    for (int it = 0; it < samples; ++it) {
-      const size_t i = pick(), j = pick();
-      if (i == j) continue;
-      Vector3d v = search[i].hom.cross(search[j].hom);
-      if (!(v.norm() > kDegenerateCross)) continue;
-      v.normalize();
-      candidates.push_back(v);
-      votes.push_back(votes_of(v));
-    }
-    candidates_sampled = static_cast<int>(candidates.size());
-    // Greedy coverage: each pick is the candidate that explains the most line
-    // length not yet explained by earlier picks, so a second sample of the
-    // strongest vanishing point (or a blend of two) does not crowd out a
-    // weaker one; the pick is then refitted to its inliers.
-    std::vector<double> covered(search.size(), 0.0);
-    std::vector<char> used(candidates.size(), 0);
-    const size_t want = static_cast<size_t>(std::clamp(options.candidate_vps, 0, kMaxCandidates));
-    const double same = std::cos(kCandidateSeparationDeg * kDegToRad);
-    while (kept.size() < want) {
-      double best_gain = 0.0;
-      int best_c = -1;
-      for (size_t c = 0; c < candidates.size(); ++c) {
-        if (used[c]) continue;
-        double gain = 0.0;
-        for (const auto& [i, s] : votes[c]) gain += std::max(0.0, s - covered[i]) * search[i].weight;
-        if (gain > best_gain) {
-          best_gain = gain;
-          best_c = static_cast<int>(c);
-        }
-      }
-      if (best_c < 0) break;
-      used[best_c] = 1;
-      const Vector3d v = refit_vp(search, candidates[best_c], tol2);
-      const Vector3d dv = direction_of(v, 1.0);
-      if (std::any_of(kept.begin(), kept.end(),
-                      [&](const Vector3d& k) { return std::abs(direction_of(k, 1.0).dot(dv)) > same; }))
-        continue;
-      kept.push_back(v);
-      // Lines near (not only within) the tolerance of a pick count as
-      // explained: real edges (cloth, distortion) scatter a little more.
-      for (size_t i = 0; i < search.size(); ++i)
-        covered[i] = std::max(covered[i], vote(search[i], v, kCoverageTolerance2 * tol2));
-    }
+// A candidate's positive votes, sparse: (line, vote).
+using Votes = std::vector<std::pair<int, double>>;
+
+Votes positive_votes(const std::vector<Line>& search, const Vector3d& v, double tol2) {
+  Votes out;
+  for (size_t i = 0; i < search.size(); ++i) {
+    const double s = vote(search[i], v, tol2);
+    if (s > 0) out.emplace_back(static_cast<int>(i), s);
   }
+  return out;
+}
 
-  // 3. Manhattan frames from pairs of candidates. Two finite vanishing points
-  //    of orthogonal directions fix the focal length (f^2 = -(p.q) for
-  //    points p, q relative to the principal point); the third direction is
-  //    their cross product. A pair with a point near infinity leaves f free:
-  //    then log-spaced focal hypotheses let the third direction's lines choose.
-  std::vector<double> focal_grid = {1.0};
+struct SampledCandidates {
+  std::vector<Vector3d> candidates;
+  std::vector<Votes> votes;  // per candidate
+};
+
+// 2. Vanishing-point candidates: intersections of length-weighted random
+//    pairs of segments (homogeneous, so points at infinity are ordinary),
+//    each with its soft, length-weighted support.
+SampledCandidates sample_candidates(const std::vector<Line>& search, double tol2, const CameraOptions& options) {
+  SampledCandidates out;
+  if (search.size() < 2) return out;
+  std::mt19937_64 rng(options.seed);
+  std::vector<double> cumulative;
+  double total = 0;
+  for (const auto& l : search) cumulative.push_back(total += l.weight);
+  std::uniform_real_distribution<double> u(0.0, total);
+  const auto pick = [&] {
+    const auto it = std::upper_bound(cumulative.begin(), cumulative.end(), u(rng));
+    return std::min<size_t>(it - cumulative.begin(), search.size() - 1);
+  };
+  const int samples = std::clamp(options.ransac_iterations, 0, kMaxSamples);
+  for (int it = 0; it < samples; ++it) {
+    const size_t i = pick(), j = pick();
+    if (i == j) continue;
+    Vector3d v = search[i].hom.cross(search[j].hom);
+    if (!(v.norm() > kDegenerateCross)) continue;
+    v.normalize();
+    out.candidates.push_back(v);
+    out.votes.push_back(positive_votes(search, v, tol2));
+  }
+  return out;
+}
+
+// Greedy coverage: each pick is the candidate that explains the most line
+// length not yet explained by earlier picks, so a second sample of the
+// strongest vanishing point (or a blend of two) does not crowd out a
+// weaker one; the pick is then refitted to its inliers. Up to
+// `candidate_vps` distinct picks are kept.
+std::vector<Vector3d> greedy_coverage(const std::vector<Line>& search, const SampledCandidates& sampled, double tol2,
+                                      const CameraOptions& options) {
+  std::vector<Vector3d> kept;
+  if (search.size() < 2) return kept;
+  const std::vector<Vector3d>& candidates = sampled.candidates;
+  std::vector<double> covered(search.size(), 0.0);
+  std::vector<char> used(candidates.size(), 0);
+  const size_t want = static_cast<size_t>(std::clamp(options.candidate_vps, 0, kMaxCandidates));
+  const double same = std::cos(kCandidateSeparationDeg * kDegToRad);
+  while (kept.size() < want) {
+    double best_gain = 0.0;
+    int best_c = -1;
+    for (size_t c = 0; c < candidates.size(); ++c) {
+      if (used[c]) continue;
+      double gain = 0.0;
+      for (const auto& [i, s] : sampled.votes[c]) gain += std::max(0.0, s - covered[i]) * search[i].weight;
+      if (gain > best_gain) {
+        best_gain = gain;
+        best_c = static_cast<int>(c);
+      }
+    }
+    if (best_c < 0) break;
+    used[best_c] = 1;
+    const Vector3d v = refit_vp(search, candidates[best_c], tol2);
+    const Vector3d dv = direction_of(v, 1.0);
+    if (std::any_of(kept.begin(), kept.end(),
+                    [&](const Vector3d& k) { return std::abs(direction_of(k, 1.0).dot(dv)) > same; }))
+      continue;
+    kept.push_back(v);
+    // Lines near (not only within) the tolerance of a pick count as
+    // explained: real edges (cloth, distortion) scatter a little more.
+    for (size_t i = 0; i < search.size(); ++i)
+      covered[i] = std::max(covered[i], vote(search[i], v, kCoverageTolerance2 * tol2));
+  }
+  return kept;
+}
+
+// Log-spaced focal hypotheses over the search range, the prior first.
+std::vector<double> focal_grid(const CameraOptions& options, const SearchScale& scale) {
+  std::vector<double> grid = {1.0};
   if (!options.fixed_focal)
     for (int h = 0, n = std::min(options.focal_hypotheses, kMaxFocalHypotheses); h < n && n > 1; ++h) {
       const double t = static_cast<double>(h) / (n - 1);
-      const double g = std::exp(std::log(g_min) + t * (std::log(g_max) - std::log(g_min)));
-      if (std::abs(std::log(g)) > 1e-3) focal_grid.push_back(g);  // the prior is already in
+      const double g = std::exp(std::log(scale.g_min) + t * (std::log(scale.g_max) - std::log(scale.g_min)));
+      if (std::abs(std::log(g)) > 1e-3) grid.push_back(g);  // the prior is already in
     }
-  Frame best;
-  int hypotheses = 0;
-  const auto consider = [&](const Vector3d& va, const Vector3d& vb, double g) {
+  return grid;
+}
+
+// The best-scoring frame of those considered so far.
+struct FrameSearch {
+  FrameSearch(const std::vector<Line>& search, double tol2) : search(search), tol2(tol2) {}
+
+  void consider(const Vector3d& va, const Vector3d& vb, double g) {
     Frame f;
     if (!make_frame(va, vb, g, f)) return;
     const auto vps = frame_vps(f);
     f.score = score_vps(search, vps.data(), 3, tol2) * (1.0 - kFocalPriorWeight * std::abs(std::log(g)));
     ++hypotheses;
     if (f.score > best.score) best = f;
-  };
+  }
+
+  const std::vector<Line>& search;
+  const double tol2;
+  Frame best;
+  int hypotheses = 0;
+};
+
+// 3. Manhattan frames from pairs of candidates. Two finite vanishing points
+//    of orthogonal directions fix the focal length (f^2 = -(p.q) for
+//    points p, q relative to the principal point); the third direction is
+//    their cross product. A pair with a point near infinity leaves f free:
+//    then log-spaced focal hypotheses let the third direction's lines choose.
+void search_frames(const std::vector<Vector3d>& kept, const std::vector<double>& focal_grid,
+                   const CameraOptions& options, const SearchScale& scale, FrameSearch& frames) {
+  const double g_min = scale.g_min, g_max = scale.g_max;
   for (size_t i = 0; i < kept.size(); ++i)
     for (size_t j = i + 1; j < kept.size(); ++j) {
       const Vector3d& a = kept[i];
@@ -583,7 +517,7 @@ CameraEstimate estimate_camera(const std::vector<LineSegment>& input, int width,
           const double g = std::sqrt(g2);
           if (std::abs(direction_of(a, g).z()) >= kFiniteVanishingZ &&
               std::abs(direction_of(b, g).z()) >= kFiniteVanishingZ) {
-            consider(a, b, g);
+            frames.consider(a, b, g);
             continue;
           }
         }
@@ -591,141 +525,188 @@ CameraEstimate estimate_camera(const std::vector<LineSegment>& input, int width,
                                    std::abs(direction_of(b, 1.0).z()) < kFiniteVanishingZ;
         if (!near_infinity) continue;  // two finite points that no focal length in range makes orthogonal
       }
-      for (double g : focal_grid) consider(a, b, g);
+      for (double g : focal_grid) frames.consider(a, b, g);
     }
-  if (best.score < 0 && !kept.empty()) {
+  if (frames.best.score < 0 && !kept.empty()) {
     // A single candidate: its direction and the level direction orthogonal to it.
     const Vector3d a = direction_of(kept[0], 1.0);
     Vector3d b = Vector3d::UnitY() - a.y() * a;
     if (b.norm() < 1e-6) b = Vector3d::UnitX() - a.x() * a;
-    consider(kept[0], vp_of(b.normalized(), 1.0), 1.0);
+    frames.consider(kept[0], vp_of(b.normalized(), 1.0), 1.0);
+  }
+}
+
+// 4. Refine: label the lines, then bounded robust least squares (Cauchy)
+//    of their endpoint distances over the frame's rotation, and over the
+//    focal length when the lines fix it (three supported directions, two
+//    finite vanishing points, std of log f <= kMaxFocalLogStd; a weak prior
+//    on it); relabel and repeat while the labels change.
+class FrameRefiner {
+ public:
+  FrameRefiner(const std::vector<Line>& search, const SearchScale& scale, const CameraOptions& options,
+               const Frame& best)
+      : frame(best), have_frame(best.score >= 0), search_(search), scale_(scale), options_(options) {
+    if (!have_frame) frame.d = {Vector3d::UnitX(), Vector3d::UnitY(), Vector3d::UnitZ()};
   }
 
-  // 4. Refine: label the lines, then bounded robust least squares (Cauchy)
-  //    of their endpoint distances over the frame's rotation, and over the
-  //    focal length when the lines fix it (three supported directions, two
-  //    finite vanishing points, std of log f <= kMaxFocalLogStd; a weak prior
-  //    on it); relabel and repeat while the labels change.
-  Frame frame = best;
-  const bool have_frame = best.score >= 0;
-  if (!have_frame) frame.d = {Vector3d::UnitX(), Vector3d::UnitY(), Vector3d::UnitZ()};
+  void refine() {
+    std::vector<int> previous;
+    bool previous_observable = false;
+    for (int round = 0; have_frame && round < kMaxRefineRounds; ++round) {
+      assess();
+      if (round > 0 && labels == previous && observable == previous_observable) break;
+      previous = labels;
+      previous_observable = observable;
+      if (!observable) frame.g = 1.0;
+      if (supported_count == 0) break;
+      solve(observable, false);
+    }
+    assess();
+    if (!observable) frame.g = 1.0;
+  }
+
+  // 4b. Principal point: three vanishing points fix it (the orthocentre of
+  //     their triangle) and two finite ones put it on their horizon, but it
+  //     is the worst-conditioned part of the camera. So it is refined, with
+  //     the prior at the image centre (MAP), only where the lines fixed the
+  //     focal length. Returns the posterior deviation, pixels.
+  double refine_principal_point() {
+    solve(true, true);
+    const Matrix6d info = line_information(search_, labels, supported, frame.d, frame.g, frame.centre, scale_.prior_f,
+                                           kLineSigmaOfTolerance * scale_.tol_px, scale_.tol_px);
+    return scale_.prior_f * centre_std(info, kFocalPriorSigma, scale_.centre_prior_sigma);
+  }
+
+  Frame frame;
+  const bool have_frame;
+  std::vector<int> labels;  // per search line: its axis or -1
   std::array<bool, 3> supported{};
   int supported_count = 0;
-  bool observable = false;
+  bool observable = false;  // the lines fix the focal length
   double log_f_std = std::numeric_limits<double>::infinity();
-  const auto assess = [&](std::vector<int>& labels) {
+  int iterations = 0, rounds = 0;
+  bool converged = false;
+  double final_cost = 0.0;
+
+ private:
+  // Labels the lines against the frame, and which axes they support.
+  void assess() {
     const auto vps = frame_vps(frame);
-    score_vps(search, vps.data(), 3, tol2, &labels);
+    score_vps(search_, vps.data(), 3, scale_.tol2, &labels);
     std::array<int, 3> counts{};
     for (int l : labels)
       if (l >= 0) ++counts[l];
     supported_count = 0;
     int finite = 0;
     for (int k = 0; k < 3; ++k) {
-      supported[k] = have_frame && counts[k] >= options.min_support_lines;
+      supported[k] = have_frame && counts[k] >= options_.min_support_lines;
       supported_count += supported[k];
       finite += supported[k] && std::abs(frame.d[k].z()) >= kFiniteVanishingZ;
     }
-    observable = !options.fixed_focal && supported_count >= kMinDirectionsForFocal && finite >= 2;
-    log_f_std = observable ? focal_log_std(line_information(search, labels, supported, frame.d, frame.g,
-                                                            frame.centre, prior_f, kLineSigmaOfTolerance * tol_px, tol_px))
+    observable = !options_.fixed_focal && supported_count >= kMinDirectionsForFocal && finite >= 2;
+    log_f_std = observable ? focal_log_std(line_information(search_, labels, supported, frame.d, frame.g, frame.centre,
+                                                            scale_.prior_f, kLineSigmaOfTolerance * scale_.tol_px,
+                                                            scale_.tol_px))
                            : std::numeric_limits<double>::infinity();
     if (log_f_std > kMaxFocalLogStd) observable = false;
+  }
+
+  // The frame as Ceres' parameter blocks.
+  struct Parameters {
+    double angle_axis[3];
+    double log_g;
+    double centre[2];
   };
-  int refine_iterations = 0, refine_rounds = 0;
-  bool refine_converged = false;
-  double final_cost = 0.0;
+
   // One bounded robust least-squares solve over the labelled lines: the
   // rotation always, log f and the principal point when asked.
-  const auto solve = [&](const std::vector<int>& labels, bool free_focal, bool free_centre) {
+  void solve(bool free_focal, bool free_centre) {
     Matrix3d m;
     for (int k = 0; k < 3; ++k) m.col(k) = frame.d[k];
-    double angle_axis[3];
-    ceres::RotationMatrixToAngleAxis(m.data(), angle_axis);
-    double log_g = std::log(frame.g);
-    double centre[2] = {frame.centre.x(), frame.centre.y()};
-    ceres::CauchyLoss loss(tol_px);
+    Parameters q;
+    ceres::RotationMatrixToAngleAxis(m.data(), q.angle_axis);
+    q.log_g = std::log(frame.g);
+    q.centre[0] = frame.centre.x();
+    q.centre[1] = frame.centre.y();
+    ceres::CauchyLoss loss(scale_.tol_px);
     ceres::Problem::Options problem_options;
     problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
     ceres::Problem problem(problem_options);
-    for (size_t i = 0; i < search.size(); ++i) {
+    for (size_t i = 0; i < search_.size(); ++i) {
       if (labels[i] < 0 || !supported[labels[i]]) continue;
       problem.AddResidualBlock(new ceres::AutoDiffCostFunction<EndpointResidual, 1, 3, 1, 2>(
-                                   new EndpointResidual(search[i], labels[i], prior_f)),
-                               &loss, angle_axis, &log_g, centre);
+                                   new EndpointResidual(search_[i], labels[i], scale_.prior_f)),
+                               &loss, q.angle_axis, &q.log_g, q.centre);
     }
+    free_or_hold_focal(problem, q, free_focal);
+    free_or_hold_centre(problem, q, free_centre);
+    ceres::Solver::Summary summary;
+    ceres::Solve(solver_options(), &problem, &summary);
+    ++rounds;
+    iterations += static_cast<int>(summary.iterations.size());
+    converged = summary.termination_type == ceres::CONVERGENCE;
+    final_cost = summary.final_cost;
+    adopt_if_usable(q, summary);
+  }
+
+  // A free focal length has a weak prior and stays within the search range.
+  void free_or_hold_focal(ceres::Problem& problem, Parameters& q, bool free_focal) const {
     if (!free_focal) {
-      problem.SetParameterBlockConstant(&log_g);
-    } else {
-      problem.AddResidualBlock(new ceres::AutoDiffCostFunction<FocalPriorResidual, 1, 1>(
-                                   new FocalPriorResidual(kLineSigmaOfTolerance * tol_px / kFocalPriorSigma)),
-                               nullptr, &log_g);
-      problem.SetParameterLowerBound(&log_g, 0, std::log(g_min));
-      problem.SetParameterUpperBound(&log_g, 0, std::log(g_max));
+      problem.SetParameterBlockConstant(&q.log_g);
+      return;
     }
+    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<FocalPriorResidual, 1, 1>(
+                                 new FocalPriorResidual(kLineSigmaOfTolerance * scale_.tol_px / kFocalPriorSigma)),
+                             nullptr, &q.log_g);
+    problem.SetParameterLowerBound(&q.log_g, 0, std::log(scale_.g_min));
+    problem.SetParameterUpperBound(&q.log_g, 0, std::log(scale_.g_max));
+  }
+
+  // A free principal point has its prior at the image centre.
+  void free_or_hold_centre(ceres::Problem& problem, Parameters& q, bool free_centre) const {
     if (!free_centre) {
-      problem.SetParameterBlockConstant(centre);
-    } else {
-      problem.AddResidualBlock(new ceres::AutoDiffCostFunction<CentrePriorResidual, 2, 2>(
-                                   new CentrePriorResidual(kLineSigmaOfTolerance * tol_px / centre_prior_sigma)),
-                               nullptr, centre);
+      problem.SetParameterBlockConstant(q.centre);
+      return;
     }
+    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<CentrePriorResidual, 2, 2>(new CentrePriorResidual(
+                                 kLineSigmaOfTolerance * scale_.tol_px / scale_.centre_prior_sigma)),
+                             nullptr, q.centre);
+  }
+
+  ceres::Solver::Options solver_options() const {
     ceres::Solver::Options solver;
-    solver.max_num_iterations = options.max_refine_iterations;
-    solver.max_solver_time_in_seconds = options.max_refine_seconds;
+    solver.max_num_iterations = options_.max_refine_iterations;
+    solver.max_solver_time_in_seconds = options_.max_refine_seconds;
     solver.linear_solver_type = ceres::DENSE_QR;
     solver.num_threads = 1;
-    ceres::Solver::Summary summary;
-    ceres::Solve(solver, &problem, &summary);
-    ++refine_rounds;
-    refine_iterations += static_cast<int>(summary.iterations.size());
-    refine_converged = summary.termination_type == ceres::CONVERGENCE;
-    final_cost = summary.final_cost;
+    return solver;
+  }
+
+  // The solved parameters become the frame only if they are finite and usable.
+  void adopt_if_usable(const Parameters& q, const ceres::Solver::Summary& summary) {
     double refined[9];
-    ceres::AngleAxisToRotationMatrix(angle_axis, refined);
+    ceres::AngleAxisToRotationMatrix(q.angle_axis, refined);
     const Eigen::Map<Matrix3d> r(refined);
-    const Vector2d c(centre[0], centre[1]);
-    if (r.allFinite() && std::isfinite(log_g) && c.allFinite() && summary.IsSolutionUsable()) {
+    const Vector2d c(q.centre[0], q.centre[1]);
+    if (r.allFinite() && std::isfinite(q.log_g) && c.allFinite() && summary.IsSolutionUsable()) {
       for (int k = 0; k < 3; ++k) frame.d[k] = r.col(k);
-      frame.g = std::exp(log_g);
+      frame.g = std::exp(q.log_g);
       frame.centre = c;
     }
-  };
-  std::vector<int> labels, previous;
-  bool previous_observable = false;
-  for (int round = 0; have_frame && round < kMaxRefineRounds; ++round) {
-    assess(labels);
-    if (round > 0 && labels == previous && observable == previous_observable) break;
-    previous = labels;
-    previous_observable = observable;
-    if (!observable) frame.g = 1.0;
-    if (supported_count == 0) break;
-    solve(labels, observable, false);
   }
-  assess(labels);
-  if (!observable) frame.g = 1.0;
 
-  // 4b. Principal point: three vanishing points fix it (the orthocentre of
-  //     their triangle) and two finite ones put it on their horizon, but it is
-  //     the worst-conditioned part of the camera. So it is refined, with the
-  //     prior at the image centre (MAP), only where the lines fixed the focal
-  //     length, and the posterior deviation is reported.
-  double principal_std_px = std::numeric_limits<double>::infinity();
-  const bool principal_estimated = options.estimate_principal_point && observable && supported_count == 3;
-  if (principal_estimated) {
-    solve(labels, true, true);
-    const Matrix6d info = line_information(search, labels, supported, frame.d, frame.g, frame.centre, prior_f,
-                                           kLineSigmaOfTolerance * tol_px, tol_px);
-    principal_std_px = prior_f * centre_std(info, kFocalPriorSigma, centre_prior_sigma);
-  }
-  est.cx += prior_f * frame.centre.x();
-  est.cy += prior_f * frame.centre.y();
-  const double focal = prior_f * frame.g;
+  const std::vector<Line>& search_;
+  const SearchScale& scale_;
+  const CameraOptions& options_;
+};
 
-  // 5. World axes. Up: with two or more supported directions the whole frame
-  //    is known and up is its axis nearest the image's vertical; a lone
-  //    direction near the vertical is up (yaw unknown); a lone horizontal one
-  //    gets the level up orthogonal to it (no roll); none: a level camera.
+// 5. World axes. Up: with two or more supported directions the whole frame
+//    is known and up is its axis nearest the image's vertical; a lone
+//    direction near the vertical is up (yaw unknown); a lone horizontal one
+//    gets the level up orthogonal to it (no roll); none: a level camera.
+//    Sets est.which; returns up and a first guess at world Z (camera frame).
+std::pair<Vector3d, Vector3d> up_and_back(const Frame& frame, const std::array<bool, 3>& supported,
+                                          int supported_count, CameraEstimate& est) {
   Vector3d up_cam(0, -1, 0), z_cam = Vector3d::Zero();
   if (supported_count >= 2) {
     int up = 0;
@@ -750,6 +731,13 @@ CameraEstimate estimate_camera(const std::vector<LineSegment>& input, int width,
   } else {
     est.which = CameraCase::NoVanishingPoints;
   }
+  return {up_cam, z_cam};
+}
+
+// Sets est.which, est.R_world_from_cam and est.directions_cam.
+void set_world_axes(const Frame& frame, const std::array<bool, 3>& supported, int supported_count,
+                    CameraEstimate& est) {
+  auto [up_cam, z_cam] = up_and_back(frame, supported, supported_count, est);
   if (!(up_cam.norm() > 1e-9)) up_cam = Vector3d(0, -1, 0);
   up_cam.normalize();
   if (up_cam.y() > 0) up_cam = -up_cam;  // camera y points down
@@ -769,17 +757,19 @@ CameraEstimate estimate_camera(const std::vector<LineSegment>& input, int width,
   R_cam_from_world.col(2) = x_cam.cross(up_cam);
   est.R_world_from_cam = R_cam_from_world.transpose();
   est.directions_cam = {R_cam_from_world.col(0), R_cam_from_world.col(1), R_cam_from_world.col(2)};
-  est.focal_from_vanishing_points = observable;
-  est.fx = est.fy = observable ? focal : prior_f;
+}
 
-  // Label every input line against the final world axes.
-  const double g_final = est.fx / prior_f;
-  const std::array<Vector3d, 3> world_vps = {vp_of(est.directions_cam[0], g_final, frame.centre),
-                                             vp_of(est.directions_cam[1], g_final, frame.centre),
-                                             vp_of(est.directions_cam[2], g_final, frame.centre)};
+// Labels every input line against the final world axes (est.line_labels,
+// est.support); returns the inliers per axis.
+std::array<int, 3> label_input_lines(const std::vector<Line>& all, size_t input_count, const SearchScale& scale,
+                                     const Vector2d& centre, CameraEstimate& est) {
+  const double g_final = est.fx / scale.prior_f;
+  const std::array<Vector3d, 3> world_vps = {vp_of(est.directions_cam[0], g_final, centre),
+                                             vp_of(est.directions_cam[1], g_final, centre),
+                                             vp_of(est.directions_cam[2], g_final, centre)};
   std::vector<int> all_labels;
-  score_vps(all, world_vps.data(), est.which == CameraCase::NoVanishingPoints ? 0 : 3, tol2, &all_labels);
-  est.line_labels.assign(input.size(), -1);
+  score_vps(all, world_vps.data(), est.which == CameraCase::NoVanishingPoints ? 0 : 3, scale.tol2, &all_labels);
+  est.line_labels.assign(input_count, -1);
   std::array<int, 3> final_counts{};
   est.support.fill(0.0);
   for (size_t i = 0; i < all.size(); ++i) {
@@ -788,49 +778,119 @@ CameraEstimate estimate_camera(const std::vector<LineSegment>& input, int width,
     ++final_counts[all_labels[i]];
     est.support[all_labels[i]] += all[i].weight;
   }
+  return final_counts;
+}
 
-  StageReport& r = est.report;
+// What the search saw, for the report.
+struct CameraSearchStats {
+  size_t lines = 0, lines_used = 0, candidates = 0, distinct_candidates = 0;
+  int frame_hypotheses = 0;
+  std::array<int, 3> inliers_per_axis{};
+};
+
+nlohmann::json finite_or_null(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+
+StageReport camera_report(const CameraEstimate& est, const CameraSearchStats& stats, const SearchScale& scale,
+                          const CameraOptions& options, const FrameRefiner& refiner, bool principal_estimated,
+                          double principal_std_px, std::chrono::steady_clock::time_point start) {
+  StageReport r;
   r.stage = "camera";
   r.usable = true;
   r.why = to_string(est.which);
-  r.iterations = refine_iterations;
+  r.iterations = refiner.iterations;
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  r.details = {{"lines", input.size()},
-               {"lines_used", all.size()},
-               {"candidates", candidates_sampled},
-               {"distinct_candidates", kept.size()},
-               {"frame_hypotheses", hypotheses},
-               {"inliers_per_axis", {final_counts[0], final_counts[1], final_counts[2]}},
-               {"inlier_distance_px", tol_px},
+  const std::array<int, 3>& inliers = stats.inliers_per_axis;
+  r.details = {{"lines", stats.lines},
+               {"lines_used", stats.lines_used},
+               {"candidates", static_cast<int>(stats.candidates)},
+               {"distinct_candidates", stats.distinct_candidates},
+               {"frame_hypotheses", stats.frame_hypotheses},
+               {"inliers_per_axis", {inliers[0], inliers[1], inliers[2]}},
+               {"inlier_distance_px", scale.tol_px},
                {"focal_px", est.fx},
-               {"focal_prior_px", prior_f},
+               {"focal_prior_px", scale.prior_f},
                {"focal_prior_source", options.prior_focal_px > 0 && std::isfinite(options.prior_focal_px)
                                           ? (options.prior_source.empty() ? std::string("given") : options.prior_source)
                                           : std::string("default 60-degree lens")},
                {"focal_from_vanishing_points", est.focal_from_vanishing_points},
-               {"focal_log_std", std::isfinite(log_f_std) ? nlohmann::json(log_f_std) : nlohmann::json(nullptr)},
+               {"focal_log_std", finite_or_null(refiner.log_f_std)},
                {"principal_point", {est.cx, est.cy}},
                {"principal_point_estimated", principal_estimated},
-               {"principal_point_std_px",
-                std::isfinite(principal_std_px) ? nlohmann::json(principal_std_px) : nlohmann::json(nullptr)},
-               {"refine_rounds", refine_rounds},
-               {"refine_converged", refine_converged},
-               {"refine_final_cost", final_cost}};
-  if (!est.R_world_from_cam.allFinite() || !std::isfinite(est.fx) || !(est.fx > 0) || !std::isfinite(est.cx) ||
-      !std::isfinite(est.cy)) {
-    // Never hand on non-finite numbers: fall back to a level camera.
-    est.R_world_from_cam = Matrix3d::Identity();
-    est.R_world_from_cam(1, 1) = -1;
-    est.R_world_from_cam(2, 2) = -1;
-    est.directions_cam = {Vector3d::UnitX(), Vector3d(0, -1, 0), Vector3d(0, 0, -1)};
-    est.fx = est.fy = prior_f;
-    est.cx = (width - 1) / 2.0;
-    est.cy = (height - 1) / 2.0;
-    est.which = CameraCase::NoVanishingPoints;
-    est.focal_from_vanishing_points = false;
-    est.line_labels.assign(input.size(), -1);
-    r.why = "non-finite estimate replaced by a level camera";
+               {"principal_point_std_px", finite_or_null(principal_std_px)},
+               {"refine_rounds", refiner.rounds},
+               {"refine_converged", refiner.converged},
+               {"refine_final_cost", refiner.final_cost}};
+  return r;
+}
+
+// Never hand on non-finite numbers: fall back to a level camera.
+void replace_with_level_camera(CameraEstimate& est, int width, int height, double prior_f, size_t input_count) {
+  est.R_world_from_cam = Matrix3d::Identity();
+  est.R_world_from_cam(1, 1) = -1;
+  est.R_world_from_cam(2, 2) = -1;
+  est.directions_cam = {Vector3d::UnitX(), Vector3d(0, -1, 0), Vector3d(0, 0, -1)};
+  est.fx = est.fy = prior_f;
+  est.cx = (width - 1) / 2.0;
+  est.cy = (height - 1) / 2.0;
+  est.which = CameraCase::NoVanishingPoints;
+  est.focal_from_vanishing_points = false;
+  est.line_labels.assign(input_count, -1);
+  est.report.why = "non-finite estimate replaced by a level camera";
+}
+
+}  // namespace
+
+const char* to_string(CameraCase c) {
+  switch (c) {
+    case CameraCase::ThreeVanishingPoints: return "three_vanishing_points";
+    case CameraCase::TwoVanishingPoints: return "two_vanishing_points";
+    case CameraCase::VerticalOnly: return "vertical_only";
+    case CameraCase::HorizontalOnly: return "horizontal_only";
+    case CameraCase::NoVanishingPoints: return "no_vanishing_points";
   }
+  return "no_vanishing_points";
+}
+
+CameraEstimate estimate_camera(const std::vector<LineSegment>& input, int width, int height,
+                               const CameraOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  if (width <= 0 || height <= 0) throw std::invalid_argument("estimate_camera: image size must be positive");
+  CameraEstimate est;
+  est.cx = (width - 1) / 2.0;
+  est.cy = (height - 1) / 2.0;
+  const SearchScale scale = search_scale(width, height, options);
+
+  // 1. Usable segments; the longest of them drive the search.
+  const std::vector<Line> all = usable_lines(input, width, height, Vector2d(est.cx, est.cy), scale);
+  const std::vector<Line> search = longest_lines(all);
+  // 2. Vanishing-point candidates.
+  const SampledCandidates sampled = sample_candidates(search, scale.tol2, options);
+  const std::vector<Vector3d> kept = greedy_coverage(search, sampled, scale.tol2, options);
+  // 3. The best-scoring Manhattan frame from pairs of candidates.
+  FrameSearch frames(search, scale.tol2);
+  search_frames(kept, focal_grid(options, scale), options, scale, frames);
+  // 4. Refine it on its labelled lines; 4b. the principal point where the lines allow.
+  FrameRefiner refiner(search, scale, options, frames.best);
+  refiner.refine();
+  const bool principal_estimated = options.estimate_principal_point && refiner.observable && refiner.supported_count == 3;
+  const double principal_std_px =
+      principal_estimated ? refiner.refine_principal_point() : std::numeric_limits<double>::infinity();
+  const Frame& frame = refiner.frame;
+  est.cx += scale.prior_f * frame.centre.x();
+  est.cy += scale.prior_f * frame.centre.y();
+  const double focal = scale.prior_f * frame.g;
+  // 5. World axes, the focal length, and every input line's label.
+  set_world_axes(frame, refiner.supported, refiner.supported_count, est);
+  est.focal_from_vanishing_points = refiner.observable;
+  est.fx = est.fy = refiner.observable ? focal : scale.prior_f;
+  const std::array<int, 3> final_counts = label_input_lines(all, input.size(), scale, frame.centre, est);
+
+  const CameraSearchStats stats{input.size(), all.size(), sampled.candidates.size(), kept.size(), frames.hypotheses,
+                                final_counts};
+  est.report = camera_report(est, stats, scale, options, refiner, principal_estimated, principal_std_px, start);
+  if (!est.R_world_from_cam.allFinite() || !std::isfinite(est.fx) || !(est.fx > 0) || !std::isfinite(est.cx) ||
+      !std::isfinite(est.cy))
+    replace_with_level_camera(est, width, height, scale.prior_f, input.size());
   return est;
 }
 

@@ -236,6 +236,212 @@ cv::Mat upsample_inverse_depth(const cv::Mat& inv_low, const cv::Size& size, con
   return up + edge.mul(guided - up);
 }
 
+void check_depth_inputs(const DepthProblem& p, const DepthSolveOptions& o) {
+  if (p.camera.width <= 0 || p.camera.height <= 0) throw std::invalid_argument("solve_depth: empty camera");
+  if (!p.sky_mask.empty() && (p.sky_mask.type() != CV_8U || p.sky_mask.size() != cv::Size(p.camera.width, p.camera.height)))
+    throw std::invalid_argument("solve_depth: the sky mask must be CV_8U at the camera's size");
+  if (!p.orientation_labels.empty() && p.orientation_labels.type() != CV_8U)
+    throw std::invalid_argument("solve_depth: orientation labels must be CV_8U");
+  if (!p.guide_photo.empty() && (p.guide_photo.type() != CV_32FC3 || p.guide_photo.size() != cv::Size(p.camera.width, p.camera.height)))
+    throw std::invalid_argument("solve_depth: the guide photo must be CV_32FC3 at the camera's size");
+  if (p.targets.empty()) throw std::invalid_argument("solve_depth: no depth target");
+  if (o.width < 1 || o.max_iterations < 0 || !(o.max_seconds > 0)) throw std::invalid_argument("solve_depth: bad options");
+}
+
+// The unknowns: one log-depth per grid cell, row-major, starting at the targets' mean.
+std::vector<double> initial_log_depths(const Grid& g) {
+  const int n = g.w * g.h;
+  std::vector<double> z(static_cast<size_t>(n));
+  for (int i = 0; i < n; ++i) z[i] = g.log_target.at<float>(i / g.w, i % g.w);
+  return z;
+}
+
+struct TermCounts {
+  int data = 0, manhattan = 0, orientation = 0, smoothness = 0;
+};
+
+// Adds each solved cell's parameter and residuals to the problem. The order
+// (cell by cell; within a cell data, Manhattan, orientation, smoothness) is
+// the order Ceres lays out its Jacobian in, so it is kept as it is.
+class DepthTermBuilder {
+ public:
+  DepthTermBuilder(ceres::Problem& problem, std::vector<double>& z, const Grid& g, const DepthProblem& p,
+                   const std::vector<cv::Mat>& logs, const std::vector<cv::Mat>& valids, const DepthSolveOptions& o)
+      : problem_(problem), z_(z), g_(g), p_(p), logs_(logs), valids_(valids), o_(o) {}
+
+  void add_cell(int x, int y) {
+    if (!solved(x, y)) return;
+    double* zi = &z_[idx(x, y)];
+    problem_.AddParameterBlock(zi, 1);
+    problem_.SetParameterLowerBound(zi, 0, std::log(kMinDepthM));
+    problem_.SetParameterUpperBound(zi, 0, std::log(kMaxDepthM));
+    add_data_terms(x, y, zi);
+    add_normal_terms(x, y, zi);
+    add_smoothness_terms(x, y, zi);
+  }
+
+  const TermCounts& counts() const { return counts_; }
+
+ private:
+  bool solved(int x, int y) const { return x >= 0 && y >= 0 && x < g_.w && y < g_.h && !g_.sky.at<uint8_t>(y, x); }
+  int idx(int x, int y) const { return y * g_.w + x; }
+
+  // One term per target with an opinion on the cell.
+  void add_data_terms(int x, int y, double* zi) {
+    for (size_t t = 0; t < p_.targets.size(); ++t) {
+      const double v = valids_[t].at<float>(y, x) * std::max(0.0, p_.targets[t].weight);
+      if (v <= 1e-6) continue;
+      problem_.AddResidualBlock(new ceres::AutoDiffCostFunction<DataResidual, 1, 1>(
+                                    new DataResidual{logs_[t].at<float>(y, x), std::sqrt(v)}),
+                                new ceres::SoftLOneLoss(o_.data_scale), zi);
+      ++counts_.data;
+    }
+  }
+
+  // Manhattan and orientation terms on the triangle to the right and below.
+  void add_normal_terms(int x, int y, double* zi) {
+    if (!(solved(x + 1, y) && solved(x, y + 1))) return;
+    const Vector3d& ri = g_.rays[idx(x, y)];
+    double* zr = &z_[idx(x + 1, y)];
+    double* zd = &z_[idx(x, y + 1)];
+    const Vector3d& rr = g_.rays[idx(x + 1, y)];
+    const Vector3d& rd = g_.rays[idx(x, y + 1)];
+    if (o_.use_manhattan && o_.weights.manhattan > 0) {
+      problem_.AddResidualBlock(new ceres::AutoDiffCostFunction<ManhattanResidual, 3, 1, 1, 1>(
+                                    new ManhattanResidual{ri, rr, rd, std::sqrt(o_.weights.manhattan)}),
+                                new ceres::CauchyLoss(kNormalLossScale * std::sqrt(o_.weights.manhattan)), zi, zr, zd);
+      ++counts_.manhattan;
+    }
+    const int label = g_.labels.empty() ? 0 : g_.labels.at<uint8_t>(y, x);
+    if (o_.use_orientation && o_.weights.orientation > 0 && label >= 1 && label <= 3) {
+      problem_.AddResidualBlock(new ceres::AutoDiffCostFunction<OrientationResidual, 2, 1, 1, 1>(
+                                    new OrientationResidual{ri, rr, rd, label - 1, std::sqrt(o_.weights.orientation)}),
+                                new ceres::CauchyLoss(kNormalLossScale * std::sqrt(o_.weights.orientation)), zi, zr, zd);
+      ++counts_.orientation;
+    }
+  }
+
+  // Second differences along the row, then the column, through the cell.
+  void add_smoothness_terms(int x, int y, double* zi) {
+    if (!(o_.use_smoothness && o_.weights.smoothness > 0)) return;
+    const Vector3d& ri = g_.rays[idx(x, y)];
+    const double sw = std::sqrt(o_.weights.smoothness);
+    if (solved(x - 1, y) && solved(x + 1, y)) {
+      problem_.AddResidualBlock(new ceres::AutoDiffCostFunction<SmoothnessResidual, 3, 1, 1, 1>(
+                                    new SmoothnessResidual{g_.rays[idx(x - 1, y)], ri, g_.rays[idx(x + 1, y)], sw}),
+                                new ceres::CauchyLoss(o_.smoothness_scale * sw), &z_[idx(x - 1, y)], zi, &z_[idx(x + 1, y)]);
+      ++counts_.smoothness;
+    }
+    if (solved(x, y - 1) && solved(x, y + 1)) {
+      problem_.AddResidualBlock(new ceres::AutoDiffCostFunction<SmoothnessResidual, 3, 1, 1, 1>(
+                                    new SmoothnessResidual{g_.rays[idx(x, y - 1)], ri, g_.rays[idx(x, y + 1)], sw}),
+                                new ceres::CauchyLoss(o_.smoothness_scale * sw), &z_[idx(x, y - 1)], zi, &z_[idx(x, y + 1)]);
+      ++counts_.smoothness;
+    }
+  }
+
+  ceres::Problem& problem_;
+  std::vector<double>& z_;
+  const Grid& g_;
+  const DepthProblem& p_;
+  const std::vector<cv::Mat>& logs_;
+  const std::vector<cv::Mat>& valids_;
+  const DepthSolveOptions& o_;
+  TermCounts counts_;
+};
+
+TermCounts add_depth_terms(ceres::Problem& problem, std::vector<double>& z, const Grid& g, const DepthProblem& p,
+                           const std::vector<cv::Mat>& logs, const std::vector<cv::Mat>& valids,
+                           const DepthSolveOptions& o) {
+  DepthTermBuilder builder(problem, z, g, p, logs, valids, o);
+  for (int y = 0; y < g.h; ++y)
+    for (int x = 0; x < g.w; ++x) builder.add_cell(x, y);
+  return builder.counts();
+}
+
+ceres::Solver::Summary run_depth_solve(ceres::Problem& problem, const DepthSolveOptions& o) {
+  ceres::Solver::Summary summary;
+  if (problem.NumResidualBlocks() > 0 && o.max_iterations > 0) {
+    ceres::Solver::Options so;
+    so.linear_solver_type = ceres::CGNR;
+    so.max_linear_solver_iterations = 20;
+    so.max_num_iterations = o.max_iterations;
+    so.max_solver_time_in_seconds = o.max_seconds * kHangGuardScale;
+    so.num_threads = std::max(1, o.num_threads);
+    so.function_tolerance = 1e-6;
+    so.logging_type = ceres::SILENT;
+    ceres::Solve(so, &problem, &summary);
+  }
+  return summary;
+}
+
+// The solved grid as depth (sky cells at the sky's depth) into depth_low;
+// returns it as inverse depth, which upsamples without bending planes.
+cv::Mat solved_grid(const std::vector<double>& z, const Grid& g, double median_log, cv::Mat& depth_low) {
+  depth_low = cv::Mat(g.h, g.w, CV_32F);
+  cv::Mat inv_low(g.h, g.w, CV_32F);
+  for (int y = 0; y < g.h; ++y)
+    for (int x = 0; x < g.w; ++x) {
+      double v = z[y * g.w + x];
+      if (!std::isfinite(v)) v = std::isfinite(median_log) ? median_log : 0.0;
+      v = std::clamp(v, std::log(kMinDepthM), std::log(kMaxDepthM));
+      inv_low.at<float>(y, x) = static_cast<float>(std::exp(-v));
+      depth_low.at<float>(y, x) = g.sky.at<uint8_t>(y, x) ? static_cast<float>(render::kSkyDepthM) : static_cast<float>(std::exp(v));
+    }
+  return inv_low;
+}
+
+// Full-size inverse depth back to depth, within the solve's bounds.
+cv::Mat full_size_depth(const cv::Mat& inv_full, double median_log) {
+  cv::Mat depth(inv_full.size(), CV_32F);
+  for (int y = 0; y < inv_full.rows; ++y)
+    for (int x = 0; x < inv_full.cols; ++x) {
+      const float inv = inv_full.at<float>(y, x);
+      const float d = std::isfinite(inv) && inv > 0 ? 1.f / inv : static_cast<float>(std::exp(std::isfinite(median_log) ? median_log : 0.0));
+      depth.at<float>(y, x) = std::clamp(d, static_cast<float>(kMinDepthM), static_cast<float>(kMaxDepthM));
+    }
+  return depth;
+}
+
+// Sky pixels: at the sky's depth, their normals facing the camera.
+void mark_sky(const DepthProblem& p, DepthSolution& s) {
+  if (p.sky_mask.empty()) return;
+  for (int y = 0; y < s.depth.rows; ++y)
+    for (int x = 0; x < s.depth.cols; ++x)
+      if (p.sky_mask.at<uint8_t>(y, x)) {
+        s.depth.at<float>(y, x) = static_cast<float>(render::kSkyDepthM);
+        const Vector3d d = -p.camera.ray_direction(x, y);
+        s.normals.at<cv::Vec3f>(y, x) = cv::Vec3f(static_cast<float>(d.x()), static_cast<float>(d.y()), static_cast<float>(d.z()));
+      }
+}
+
+StageReport depth_report(const Grid& g, const DepthSolveOptions& o, const ceres::Solver::Summary& summary,
+                         int residual_blocks, const TermCounts& terms, std::chrono::steady_clock::time_point start) {
+  StageReport r;
+  r.stage = "depth";
+  r.usable = true;
+  const bool converged = summary.termination_type == ceres::CONVERGENCE;
+  r.why = residual_blocks == 0           ? "nothing to solve (all sky)"
+          : o.max_iterations == 0        ? "targets only (0 iterations)"
+          : converged                    ? "converged"
+                                         : std::string("stopped: ") + summary.message;
+  r.iterations = static_cast<int>(summary.iterations.size());
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  r.error = summary.final_cost;
+  r.details = {{"grid", {g.w, g.h}},
+               {"initial_cost", summary.initial_cost},
+               {"final_cost", summary.final_cost},
+               {"converged", converged},
+               {"solve_seconds", summary.total_time_in_seconds},
+               {"linear_solver_seconds", summary.linear_solver_time_in_seconds},
+               {"jacobian_seconds", summary.jacobian_evaluation_time_in_seconds},
+               {"terms", {{"data", terms.data}, {"manhattan", terms.manhattan}, {"orientation", terms.orientation},
+                          {"smoothness", terms.smoothness}}},
+               {"weights", {o.use_manhattan ? o.weights.manhattan : 0.0, o.use_orientation ? o.weights.orientation : 0.0,
+                            o.use_smoothness ? o.weights.smoothness : 0.0}}};
+  return r;
+}
+
 }  // namespace
 
 cv::Mat normals_from_depth(const cv::Mat& depth, const render::PinholeCamera& camera) {
@@ -269,16 +475,7 @@ cv::Mat normals_from_depth(const cv::Mat& depth, const render::PinholeCamera& ca
 
 DepthSolution solve_depth(const DepthProblem& p, const DepthSolveOptions& o) {
   const auto start = std::chrono::steady_clock::now();
-  if (p.camera.width <= 0 || p.camera.height <= 0) throw std::invalid_argument("solve_depth: empty camera");
-  if (!p.sky_mask.empty() && (p.sky_mask.type() != CV_8U || p.sky_mask.size() != cv::Size(p.camera.width, p.camera.height)))
-    throw std::invalid_argument("solve_depth: the sky mask must be CV_8U at the camera's size");
-  if (!p.orientation_labels.empty() && p.orientation_labels.type() != CV_8U)
-    throw std::invalid_argument("solve_depth: orientation labels must be CV_8U");
-  if (!p.guide_photo.empty() && (p.guide_photo.type() != CV_32FC3 || p.guide_photo.size() != cv::Size(p.camera.width, p.camera.height)))
-    throw std::invalid_argument("solve_depth: the guide photo must be CV_32FC3 at the camera's size");
-  if (p.targets.empty()) throw std::invalid_argument("solve_depth: no depth target");
-  if (o.width < 1 || o.max_iterations < 0 || !(o.max_seconds > 0)) throw std::invalid_argument("solve_depth: bad options");
-
+  check_depth_inputs(p, o);
   cv::Mat target_sum;
   std::vector<cv::Mat> logs, valids;
   Grid g = make_grid(p, o, target_sum, logs, valids);
@@ -287,134 +484,19 @@ DepthSolution solve_depth(const DepthProblem& p, const DepthSolveOptions& o) {
   if (any_solved && !std::isfinite(median_log))
     throw std::invalid_argument("solve_depth: no target gives a depth for any non-sky pixel");
 
-  const int n = g.w * g.h;
-  std::vector<double> z(static_cast<size_t>(n));
-  for (int i = 0; i < n; ++i) z[i] = g.log_target.at<float>(i / g.w, i % g.w);
-  auto solved = [&](int x, int y) { return x >= 0 && y >= 0 && x < g.w && y < g.h && !g.sky.at<uint8_t>(y, x); };
-  auto idx = [&](int x, int y) { return y * g.w + x; };
-
+  std::vector<double> z = initial_log_depths(g);
   ceres::Problem problem;
-  ceres::Problem::Options unused;
-  (void)unused;
-  int data_terms = 0, manhattan_terms = 0, orientation_terms = 0, smooth_terms = 0;
-  for (int y = 0; y < g.h; ++y)
-    for (int x = 0; x < g.w; ++x) {
-      if (!solved(x, y)) continue;
-      double* zi = &z[idx(x, y)];
-      problem.AddParameterBlock(zi, 1);
-      problem.SetParameterLowerBound(zi, 0, std::log(kMinDepthM));
-      problem.SetParameterUpperBound(zi, 0, std::log(kMaxDepthM));
-      for (size_t t = 0; t < p.targets.size(); ++t) {
-        const double v = valids[t].at<float>(y, x) * std::max(0.0, p.targets[t].weight);
-        if (v <= 1e-6) continue;
-        problem.AddResidualBlock(new ceres::AutoDiffCostFunction<DataResidual, 1, 1>(
-                                     new DataResidual{logs[t].at<float>(y, x), std::sqrt(v)}),
-                                 new ceres::SoftLOneLoss(o.data_scale), zi);
-        ++data_terms;
-      }
-      const Vector3d& ri = g.rays[idx(x, y)];
-      if (solved(x + 1, y) && solved(x, y + 1)) {
-        double* zr = &z[idx(x + 1, y)];
-        double* zd = &z[idx(x, y + 1)];
-        const Vector3d& rr = g.rays[idx(x + 1, y)];
-        const Vector3d& rd = g.rays[idx(x, y + 1)];
-        if (o.use_manhattan && o.weights.manhattan > 0) {
-          problem.AddResidualBlock(new ceres::AutoDiffCostFunction<ManhattanResidual, 3, 1, 1, 1>(
-                                       new ManhattanResidual{ri, rr, rd, std::sqrt(o.weights.manhattan)}),
-                                   new ceres::CauchyLoss(kNormalLossScale * std::sqrt(o.weights.manhattan)), zi, zr, zd);
-          ++manhattan_terms;
-        }
-        const int label = g.labels.empty() ? 0 : g.labels.at<uint8_t>(y, x);
-        if (o.use_orientation && o.weights.orientation > 0 && label >= 1 && label <= 3) {
-          problem.AddResidualBlock(new ceres::AutoDiffCostFunction<OrientationResidual, 2, 1, 1, 1>(
-                                       new OrientationResidual{ri, rr, rd, label - 1, std::sqrt(o.weights.orientation)}),
-                                   new ceres::CauchyLoss(kNormalLossScale * std::sqrt(o.weights.orientation)), zi, zr, zd);
-          ++orientation_terms;
-        }
-      }
-      if (o.use_smoothness && o.weights.smoothness > 0) {
-        const double sw = std::sqrt(o.weights.smoothness);
-        if (solved(x - 1, y) && solved(x + 1, y)) {
-          problem.AddResidualBlock(new ceres::AutoDiffCostFunction<SmoothnessResidual, 3, 1, 1, 1>(
-                                       new SmoothnessResidual{g.rays[idx(x - 1, y)], ri, g.rays[idx(x + 1, y)], sw}),
-                                   new ceres::CauchyLoss(o.smoothness_scale * sw), &z[idx(x - 1, y)], zi, &z[idx(x + 1, y)]);
-          ++smooth_terms;
-        }
-        if (solved(x, y - 1) && solved(x, y + 1)) {
-          problem.AddResidualBlock(new ceres::AutoDiffCostFunction<SmoothnessResidual, 3, 1, 1, 1>(
-                                       new SmoothnessResidual{g.rays[idx(x, y - 1)], ri, g.rays[idx(x, y + 1)], sw}),
-                                   new ceres::CauchyLoss(o.smoothness_scale * sw), &z[idx(x, y - 1)], zi, &z[idx(x, y + 1)]);
-          ++smooth_terms;
-        }
-      }
-    }
-
-  ceres::Solver::Summary summary;
-  if (problem.NumResidualBlocks() > 0 && o.max_iterations > 0) {
-    ceres::Solver::Options so;
-    so.linear_solver_type = ceres::CGNR;
-    so.max_linear_solver_iterations = 20;
-    so.max_num_iterations = o.max_iterations;
-    so.max_solver_time_in_seconds = o.max_seconds * kHangGuardScale;
-    so.num_threads = std::max(1, o.num_threads);
-    so.function_tolerance = 1e-6;
-    so.logging_type = ceres::SILENT;
-    ceres::Solve(so, &problem, &summary);
-  }
+  const TermCounts terms = add_depth_terms(problem, z, g, p, logs, valids, o);
+  const ceres::Solver::Summary summary = run_depth_solve(problem, o);
 
   // Back to depth: the solved grid, then edge-aware to full size.
   DepthSolution s;
-  s.depth_low = cv::Mat(g.h, g.w, CV_32F);
-  cv::Mat inv_low(g.h, g.w, CV_32F);
-  for (int y = 0; y < g.h; ++y)
-    for (int x = 0; x < g.w; ++x) {
-      double v = z[idx(x, y)];
-      if (!std::isfinite(v)) v = std::isfinite(median_log) ? median_log : 0.0;
-      v = std::clamp(v, std::log(kMinDepthM), std::log(kMaxDepthM));
-      inv_low.at<float>(y, x) = static_cast<float>(std::exp(-v));
-      s.depth_low.at<float>(y, x) = g.sky.at<uint8_t>(y, x) ? static_cast<float>(render::kSkyDepthM) : static_cast<float>(std::exp(v));
-    }
+  const cv::Mat inv_low = solved_grid(z, g, median_log, s.depth_low);
   const cv::Size full(p.camera.width, p.camera.height);
-  cv::Mat inv_full = upsample_inverse_depth(inv_low, full, p.guide_photo, o.guide_sigma_color);
-  s.depth = cv::Mat(full, CV_32F);
-  for (int y = 0; y < full.height; ++y)
-    for (int x = 0; x < full.width; ++x) {
-      const float inv = inv_full.at<float>(y, x);
-      const float d = std::isfinite(inv) && inv > 0 ? 1.f / inv : static_cast<float>(std::exp(std::isfinite(median_log) ? median_log : 0.0));
-      s.depth.at<float>(y, x) = std::clamp(d, static_cast<float>(kMinDepthM), static_cast<float>(kMaxDepthM));
-    }
+  s.depth = full_size_depth(upsample_inverse_depth(inv_low, full, p.guide_photo, o.guide_sigma_color), median_log);
   s.normals = normals_from_depth(s.depth, p.camera);
-  if (!p.sky_mask.empty())
-    for (int y = 0; y < full.height; ++y)
-      for (int x = 0; x < full.width; ++x)
-        if (p.sky_mask.at<uint8_t>(y, x)) {
-          s.depth.at<float>(y, x) = static_cast<float>(render::kSkyDepthM);
-          const Vector3d d = -p.camera.ray_direction(x, y);
-          s.normals.at<cv::Vec3f>(y, x) = cv::Vec3f(static_cast<float>(d.x()), static_cast<float>(d.y()), static_cast<float>(d.z()));
-        }
-
-  StageReport& r = s.report;
-  r.stage = "depth";
-  r.usable = true;
-  const bool converged = summary.termination_type == ceres::CONVERGENCE;
-  r.why = problem.NumResidualBlocks() == 0 ? "nothing to solve (all sky)"
-          : o.max_iterations == 0          ? "targets only (0 iterations)"
-          : converged                      ? "converged"
-                                           : std::string("stopped: ") + summary.message;
-  r.iterations = static_cast<int>(summary.iterations.size());
-  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  r.error = summary.final_cost;
-  r.details = {{"grid", {g.w, g.h}},
-               {"initial_cost", summary.initial_cost},
-               {"final_cost", summary.final_cost},
-               {"converged", converged},
-               {"solve_seconds", summary.total_time_in_seconds},
-               {"linear_solver_seconds", summary.linear_solver_time_in_seconds},
-               {"jacobian_seconds", summary.jacobian_evaluation_time_in_seconds},
-               {"terms", {{"data", data_terms}, {"manhattan", manhattan_terms}, {"orientation", orientation_terms},
-                          {"smoothness", smooth_terms}}},
-               {"weights", {o.use_manhattan ? o.weights.manhattan : 0.0, o.use_orientation ? o.weights.orientation : 0.0,
-                            o.use_smoothness ? o.weights.smoothness : 0.0}}};
+  mark_sky(p, s);
+  s.report = depth_report(g, o, summary, problem.NumResidualBlocks(), terms, start);
   return s;
 }
 

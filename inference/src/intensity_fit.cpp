@@ -90,6 +90,329 @@ class WeightResidual : public ceres::CostFunction {
   int index_;
 };
 
+void check_fit_sizes(const IntensityFitProblem& p) {
+  const size_t pixels = p.target.size();
+  for (const auto& b : p.basis)
+    if (b.size() != pixels) throw std::invalid_argument("fit_intensities: a basis render has the wrong pixel count");
+  if ((!p.noise.empty() && p.noise.size() != p.basis.size()) || (!p.lower.empty() && p.lower.size() != p.basis.size()) ||
+      (!p.upper.empty() && p.upper.size() != p.basis.size()))
+    throw std::invalid_argument("fit_intensities: noise and bounds need one value per basis render");
+}
+
+// The problem in the fit's own units: targets clipped to what a camera can
+// encode, and each basis scaled so that alone it matches the photo's mean.
+struct NormalisedFit {
+  int sources = 0;
+  size_t pixels = 0;
+  std::vector<double> target;         // encoded, in [0, 1]
+  std::vector<double> target_linear;  // linearised with the prior response
+  std::vector<double> scale;          // normalised basis = scale * basis; 0: lights nothing
+  std::vector<double> rows;           // row-major (pixel, source), normalised
+};
+
+// Targets outside [0, 1] (or not finite) are clipped: the camera cannot encode them.
+std::vector<double> clipped_targets(const IntensityFitProblem& p) {
+  const size_t pixels = p.target.size();
+  std::vector<double> target(pixels);
+  for (size_t i = 0; i < pixels; ++i) target[i] = std::isfinite(p.target[i]) ? std::clamp<double>(p.target[i], 0.0, 1.0) : 0.0;
+  return target;
+}
+
+// Scale each basis so that alone it matches the photo's mean (linear):
+// weights O(1), priors independent of exposure.
+std::vector<double> basis_scales(const IntensityFitProblem& p, const std::vector<double>& target_linear) {
+  const int sources = static_cast<int>(p.basis.size());
+  const size_t pixels = p.target.size();
+  double target_linear_mean = 0.0;
+  for (double t : target_linear) target_linear_mean += t;
+  target_linear_mean = std::max(target_linear_mean / pixels, kMinRenderedValue);
+  std::vector<double> scale(sources, 0.0);
+  for (int k = 0; k < sources; ++k) {
+    double mean = 0.0;
+    for (float v : p.basis[k]) mean += std::isfinite(v) ? std::max(0.0f, v) : 0.0f;
+    mean /= pixels;
+    scale[k] = mean > kMinBasisMean ? target_linear_mean / mean : 0.0;
+  }
+  return scale;
+}
+
+NormalisedFit normalised_problem(const IntensityFitProblem& p, const IntensityFitOptions& o) {
+  NormalisedFit f;
+  f.sources = static_cast<int>(p.basis.size());
+  f.pixels = p.target.size();
+  f.target = clipped_targets(p);
+  f.target_linear.resize(f.pixels);
+  for (size_t i = 0; i < f.pixels; ++i) f.target_linear[i] = std::pow(f.target[i], 1.0 / o.gamma0);
+  f.scale = basis_scales(p, f.target_linear);
+  f.rows.resize(f.pixels * f.sources);
+  for (size_t i = 0; i < f.pixels; ++i)
+    for (int k = 0; k < f.sources; ++k) {
+      const float v = p.basis[k][i];
+      f.rows[i * f.sources + k] = f.scale[k] * (std::isfinite(v) ? std::max(0.0f, v) : 0.0f);
+    }
+  return f;
+}
+
+// Bounds and current weights in normalised units; held weights do not move.
+struct WeightBounds {
+  std::vector<double> w, lo, hi;
+  std::vector<bool> held;
+  int free_count = 0;
+};
+
+// Lights that light nothing or are bounded to 0 are held at 0, measured
+// ones (upper <= lower) at their value; the rest start with equal shares.
+WeightBounds bounds_and_equal_shares(const IntensityFitProblem& p, const std::vector<double>& scale) {
+  const int sources = static_cast<int>(p.basis.size());
+  WeightBounds b;
+  b.w.assign(sources, 0.0);
+  b.lo.assign(sources, 0.0);
+  b.hi.assign(sources, std::numeric_limits<double>::infinity());
+  b.held.assign(sources, false);
+  for (int k = 0; k < sources; ++k) {
+    const double lower = p.lower.empty() ? 0.0 : std::max(0.0, p.lower[k]);
+    const double upper = p.upper.empty() ? std::numeric_limits<double>::infinity() : p.upper[k];
+    if (scale[k] == 0.0 || !(upper > 0.0)) {
+      b.held[k] = true;  // lights nothing, or bounded to 0
+      b.w[k] = 0.0;
+    } else if (upper <= lower) {
+      b.held[k] = true;  // fixed (measured)
+      b.w[k] = lower / scale[k];
+    } else {
+      b.lo[k] = lower / scale[k];
+      b.hi[k] = upper / scale[k];
+      ++b.free_count;
+    }
+  }
+  for (int k = 0; k < sources; ++k)
+    if (!b.held[k]) b.w[k] = std::clamp(1.0 / b.free_count, b.lo[k], b.hi[k]);
+  return b;
+}
+
+// Start from the bounded least-squares weights in the linear domain (the
+// photo linearised with gamma0), by coordinate descent from equal shares:
+// cheap, and a better start for the soft-L1 solves than equal shares.
+void least_squares_start(const NormalisedFit& f, WeightBounds& b) {
+  const int sources = f.sources;
+  const std::vector<double>& y = f.target_linear;
+  std::vector<double>& w = b.w;
+  Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(sources, sources);
+  Eigen::VectorXd rhs = Eigen::VectorXd::Zero(sources);
+  for (size_t i = 0; i < f.pixels; ++i) {
+    const Eigen::Map<const Eigen::VectorXd> r(&f.rows[i * sources], sources);
+    gram.noalias() += r * r.transpose();
+    rhs.noalias() += r * y[i];
+  }
+  for (int sweep = 0; sweep < kInitialSweeps; ++sweep)
+    for (int k = 0; k < sources; ++k) {
+      if (b.held[k] || !(gram(k, k) > 0)) continue;
+      const double rest = rhs[k] - gram.row(k).dot(Eigen::Map<const Eigen::VectorXd>(w.data(), sources)) + gram(k, k) * w[k];
+      w[k] = std::clamp(rest / gram(k, k), b.lo[k], b.hi[k]);
+    }
+  for (double& v : w)
+    if (!std::isfinite(v)) v = 0.0;
+}
+
+// The weights for a fixed response: bounded Levenberg-Marquardt.
+class WeightSolver {
+ public:
+  WeightSolver(const NormalisedFit& f, const WeightBounds& b, const IntensityFitProblem& p, const IntensityFitOptions& o)
+      : f_(f), b_(b), p_(p), o_(o), a_(std::sqrt(std::max(o.smooth_abs_epsilon, 1e-300))) {}
+
+  // Solves the weights not in `hold` for response g, starting from (and
+  // writing to) w. Returns the objective (data, priors and the response's
+  // prior), or +inf when the solve is unusable (w is then left as it was).
+  double solve(const std::vector<bool>& hold, double g, std::vector<double>& w, IntensityFitResult& out) const {
+    std::vector<int> free_index;
+    for (int k = 0; k < f_.sources; ++k)
+      if (!hold[k]) free_index.push_back(k);
+    const int free_n = static_cast<int>(free_index.size());
+    const double gamma_cost = response_prior_cost(g);
+    const std::vector<double> held_sum = held_sums(hold, w);
+    if (free_n == 0) return objective_at_held_weights(held_sum, g, gamma_cost, out);
+    std::vector<double> trial(free_n);
+    for (int j = 0; j < free_n; ++j) trial[j] = w[free_index[j]];
+    ceres::Problem::Options po;
+    po.loss_function_ownership = ceres::TAKE_OWNERSHIP;
+    ceres::Problem problem(po);
+    add_residuals(problem, free_index, held_sum, g, trial);
+    ceres::Solver::Summary summary;
+    ceres::Solve(solver_options(), &problem, &summary);
+    out.iterations += static_cast<int>(summary.iterations.size());
+    ++out.solves;
+    out.converged = summary.termination_type == ceres::CONVERGENCE;
+    out.termination = summary.message;
+    const bool usable = summary.IsSolutionUsable() && std::isfinite(summary.final_cost) &&
+                        std::all_of(trial.begin(), trial.end(), [](double v) { return std::isfinite(v); });
+    if (!usable) return std::numeric_limits<double>::infinity();
+    for (int j = 0; j < free_n; ++j) w[free_index[j]] = trial[j];
+    return (summary.final_cost + gamma_cost) / a_;  // in the objective's units
+  }
+
+ private:
+  // The response's prior, soft |gamma - gamma0| as Ceres would weigh it
+  // (lambda a^2 (sqrt(1 + r^2/a^2) - 1)): constant within a solve, it
+  // ranks the responses tried.
+  double response_prior_cost(double g) const {
+    const double gamma_weight = o_.lambda_gamma + o_.lambda_gamma_per_pixel * f_.pixels;
+    return gamma_weight * a_ * (std::hypot(a_, g - o_.gamma0) - a_);
+  }
+
+  // What the held weights add to each pixel.
+  std::vector<double> held_sums(const std::vector<bool>& hold, const std::vector<double>& w) const {
+    std::vector<double> held_sum(f_.pixels, 0.0);
+    for (size_t i = 0; i < f_.pixels; ++i)
+      for (int k = 0; k < f_.sources; ++k)
+        if (hold[k]) held_sum[i] += w[k] * f_.rows[i * f_.sources + k];
+    return held_sum;
+  }
+
+  // Nothing to solve: the objective at the held weights.
+  double objective_at_held_weights(const std::vector<double>& held_sum, double g, double gamma_cost,
+                                   IntensityFitResult& out) const {
+    double cost = gamma_cost;
+    for (size_t i = 0; i < f_.pixels; ++i) {
+      const double r = f_.target[i] - std::pow(std::max(held_sum[i], kMinRenderedValue), g);
+      cost += a_ * (std::hypot(a_, r) - a_);
+    }
+    ++out.solves;
+    out.converged = true;
+    out.termination = "every weight is held";
+    return std::isfinite(cost) ? cost / a_ : std::numeric_limits<double>::infinity();
+  }
+
+  void add_residuals(ceres::Problem& problem, const std::vector<int>& free_index, const std::vector<double>& held_sum,
+                     double g, std::vector<double>& trial) const {
+    const int free_n = static_cast<int>(free_index.size());
+    // Q: per-pixel soft |.|, summed over pixels as in the paper.
+    for (size_t i = 0; i < f_.pixels; ++i)
+      problem.AddResidualBlock(
+          new PixelResidual(&f_.rows[i * f_.sources], free_index.data(), free_n, held_sum[i], g, f_.target[i]),
+          new ceres::SoftLOneLoss(a_), trial.data());
+    // P: sparsity plus the basis-noise prior, |w_k| (1 + N_k) for w_k >= 0.
+    for (int j = 0; j < free_n; ++j) {
+      const int k = free_index[j];
+      const double noise = p_.noise.empty() ? 0.0 : std::max(0.0, p_.noise[k]);
+      problem.AddResidualBlock(new WeightResidual(j, free_n),
+                               new ceres::ScaledLoss(new ceres::SoftLOneLoss(a_), o_.lambda_prior * (1.0 + noise),
+                                                     ceres::TAKE_OWNERSHIP),
+                               trial.data());
+    }
+    for (int j = 0; j < free_n; ++j) {
+      const int k = free_index[j];
+      problem.SetParameterLowerBound(trial.data(), j, b_.lo[k]);
+      if (std::isfinite(b_.hi[k])) problem.SetParameterUpperBound(trial.data(), j, b_.hi[k]);
+    }
+  }
+
+  ceres::Solver::Options solver_options() const {
+    ceres::Solver::Options so;
+    so.max_num_iterations = std::max(1, o_.max_iterations);
+    so.max_solver_time_in_seconds = o_.max_seconds;
+    so.linear_solver_type = ceres::DENSE_QR;
+    so.num_threads = 1;  // deterministic
+    so.function_tolerance = kFunctionTolerance;
+    so.gradient_tolerance = kGradientTolerance;
+    so.parameter_tolerance = kParameterTolerance;
+    return so;
+  }
+
+  const NormalisedFit& f_;
+  const WeightBounds& b_;
+  const IntensityFitProblem& p_;
+  const IntensityFitOptions& o_;
+  const double a_;
+};
+
+struct BestFit {
+  double gamma = 0.0, cost = 0.0;
+  std::vector<double> w;
+};
+
+// Golden-section search for the lowest cost in [lo_g, hi_g]; `consider`
+// solves at a response and returns its cost.
+template <typename Consider>
+void golden_section(double lo_g, double hi_g, const IntensityFitOptions& o, Consider&& consider) {
+  constexpr double kGolden = 0.6180339887498949;
+  double x1 = hi_g - kGolden * (hi_g - lo_g), x2 = lo_g + kGolden * (hi_g - lo_g);
+  double f1 = consider(x1), f2 = consider(x2);
+  for (int it = 0; it < o.gamma_refinements && hi_g - lo_g > kGammaTolerance; ++it) {
+    if (f1 <= f2) {
+      hi_g = x2, x2 = x1, f2 = f1;
+      x1 = hi_g - kGolden * (hi_g - lo_g);
+      f1 = consider(x1);
+    } else {
+      lo_g = x1, x1 = x2, f1 = f2;
+      x2 = lo_g + kGolden * (hi_g - lo_g);
+      f2 = consider(x2);
+    }
+  }
+}
+
+// The response: weights and response trade off along a shallow valley (a
+// lower gamma brightens, so smaller weights do), where a joint solve
+// stalled far from the optimum. So gamma is profiled: the weights are
+// solved for each gamma of a log-spaced grid, then golden-section search
+// between the best point's neighbours, warm-started from the best weights.
+BestFit profile_gamma(const WeightSolver& solver, const std::vector<bool>& hold, std::vector<double>& w,
+                      const IntensityFitOptions& o, IntensityFitResult& out) {
+  BestFit best;
+  best.gamma = o.gamma0;
+  best.cost = solver.solve(hold, o.gamma0, w, out);
+  best.w = w;
+  const auto consider = [&](double g) {
+    w = best.w;
+    const double cost = solver.solve(hold, g, w, out);
+    if (cost < best.cost) {
+      best.cost = cost;
+      best.gamma = g;
+      best.w = w;
+    }
+    return cost;
+  };
+  if (!(o.fit_gamma && o.max_gamma > o.min_gamma && o.min_gamma > 0)) return best;
+  const int n = std::max(3, o.gamma_grid);
+  std::vector<double> grid(n);
+  for (int i = 0; i < n; ++i)
+    grid[i] = o.min_gamma * std::pow(o.max_gamma / o.min_gamma, static_cast<double>(i) / (n - 1));
+  std::vector<double> costs(n);
+  for (int i = 0; i < n; ++i) costs[i] = consider(grid[i]);
+  const int b = static_cast<int>(std::min_element(costs.begin(), costs.end()) - costs.begin());
+  // Bracket: the grid neighbours of the best grid point (and gamma0, if
+  // it lies between them, is already a candidate).
+  golden_section(grid[std::max(0, b - 1)], grid[std::min(n - 1, b + 1)], o, consider);
+  return best;
+}
+
+// Zeroes and holds the free weights below prune_share of the total; true
+// when one of them was not already zero.
+bool prune_small_lights(const std::vector<bool>& held, double prune_share, std::vector<double>& w,
+                        std::vector<bool>& hold, IntensityFitResult& out) {
+  const int sources = static_cast<int>(w.size());
+  double total = 0.0;
+  for (int k = 0; k < sources; ++k) total += w[k];  // each normalised basis has the photo's mean
+  bool pruned_any = false;
+  for (int k = 0; k < sources; ++k)
+    if (!held[k] && w[k] < prune_share * total) {
+      pruned_any = pruned_any || w[k] > 0.0;
+      w[k] = 0.0;
+      hold[k] = true;
+      ++out.pruned;
+    }
+  return pruned_any;
+}
+
+// Mean |I - (Rw)^gamma| over the pixels (encoded units).
+double mean_data_error(const NormalisedFit& f, const std::vector<double>& w, double gamma) {
+  double data_error = 0.0;
+  for (size_t i = 0; i < f.pixels; ++i) {
+    double sum = 0.0;
+    for (int k = 0; k < f.sources; ++k) sum += w[k] * f.rows[i * f.sources + k];
+    data_error += std::abs(f.target[i] - std::pow(std::max(sum, kMinRenderedValue), gamma));
+  }
+  return data_error / f.pixels;
+}
+
 }  // namespace
 
 double basis_noise(const cv::Mat& render, const cv::Mat& mask) {
@@ -113,13 +436,9 @@ double basis_noise(const cv::Mat& render, const cv::Mat& mask) {
 }
 
 IntensityFitResult fit_intensities(const IntensityFitProblem& p, const IntensityFitOptions& o) {
+  check_fit_sizes(p);
   const int sources = static_cast<int>(p.basis.size());
   const size_t pixels = p.target.size();
-  for (const auto& b : p.basis)
-    if (b.size() != pixels) throw std::invalid_argument("fit_intensities: a basis render has the wrong pixel count");
-  if ((!p.noise.empty() && p.noise.size() != p.basis.size()) || (!p.lower.empty() && p.lower.size() != p.basis.size()) ||
-      (!p.upper.empty() && p.upper.size() != p.basis.size()))
-    throw std::invalid_argument("fit_intensities: noise and bounds need one value per basis render");
   IntensityFitResult out;
   out.weights = Eigen::VectorXd::Zero(sources);
   out.gamma = o.gamma0;
@@ -127,224 +446,27 @@ IntensityFitResult fit_intensities(const IntensityFitProblem& p, const Intensity
     out.termination = sources == 0 ? "no light sources" : "no pixels to fit";
     return out;
   }
+  const NormalisedFit fit = normalised_problem(p, o);
+  WeightBounds bounds = bounds_and_equal_shares(p, fit.scale);
+  least_squares_start(fit, bounds);
+  const std::vector<double> w_start = bounds.w;
+  const WeightSolver solver(fit, bounds, p, o);
 
-  // Targets outside [0, 1] (or not finite) are clipped: the camera cannot encode them.
-  std::vector<double> target(pixels);
-  for (size_t i = 0; i < pixels; ++i) target[i] = std::isfinite(p.target[i]) ? std::clamp<double>(p.target[i], 0.0, 1.0) : 0.0;
-
-  // The photo linearised with the prior response.
-  std::vector<double> target_linear(pixels);
-  for (size_t i = 0; i < pixels; ++i) target_linear[i] = std::pow(target[i], 1.0 / o.gamma0);
-  // Scale each basis so that alone it matches the photo's mean (linear):
-  // weights O(1), priors independent of exposure.
-  double target_linear_mean = 0.0;
-  for (double t : target_linear) target_linear_mean += t;
-  target_linear_mean = std::max(target_linear_mean / pixels, kMinRenderedValue);
-  std::vector<double> scale(sources, 0.0);  // normalised basis = scale * basis
-  for (int k = 0; k < sources; ++k) {
-    double mean = 0.0;
-    for (float v : p.basis[k]) mean += std::isfinite(v) ? std::max(0.0f, v) : 0.0f;
-    mean /= pixels;
-    scale[k] = mean > kMinBasisMean ? target_linear_mean / mean : 0.0;
-  }
-  std::vector<double> rows(pixels * sources);  // row-major, normalised
-  for (size_t i = 0; i < pixels; ++i)
-    for (int k = 0; k < sources; ++k) {
-      const float v = p.basis[k][i];
-      rows[i * sources + k] = scale[k] * (std::isfinite(v) ? std::max(0.0f, v) : 0.0f);
-    }
-
-  // Bounds and start in normalised units.
-  std::vector<double> w(sources), lo(sources, 0.0), hi(sources, std::numeric_limits<double>::infinity());
-  std::vector<bool> held(sources, false);
-  int free_count = 0;
-  for (int k = 0; k < sources; ++k) {
-    const double lower = p.lower.empty() ? 0.0 : std::max(0.0, p.lower[k]);
-    const double upper = p.upper.empty() ? std::numeric_limits<double>::infinity() : p.upper[k];
-    if (scale[k] == 0.0 || !(upper > 0.0)) {
-      held[k] = true;  // lights nothing, or bounded to 0
-      w[k] = 0.0;
-    } else if (upper <= lower) {
-      held[k] = true;  // fixed (measured)
-      w[k] = lower / scale[k];
-    } else {
-      lo[k] = lower / scale[k];
-      hi[k] = upper / scale[k];
-      ++free_count;
-    }
-  }
-  for (int k = 0; k < sources; ++k)
-    if (!held[k]) w[k] = std::clamp(1.0 / free_count, lo[k], hi[k]);
-  // Start from the bounded least-squares weights in the linear domain (the
-  // photo linearised with gamma0), by coordinate descent from equal shares:
-  // cheap, and a better start for the soft-L1 solves than equal shares.
-  {
-    const std::vector<double>& y = target_linear;
-    Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(sources, sources);
-    Eigen::VectorXd rhs = Eigen::VectorXd::Zero(sources);
-    for (size_t i = 0; i < pixels; ++i) {
-      const Eigen::Map<const Eigen::VectorXd> r(&rows[i * sources], sources);
-      gram.noalias() += r * r.transpose();
-      rhs.noalias() += r * y[i];
-    }
-    for (int sweep = 0; sweep < kInitialSweeps; ++sweep)
-      for (int k = 0; k < sources; ++k) {
-        if (held[k] || !(gram(k, k) > 0)) continue;
-        const double rest = rhs[k] - gram.row(k).dot(Eigen::Map<const Eigen::VectorXd>(w.data(), sources)) + gram(k, k) * w[k];
-        w[k] = std::clamp(rest / gram(k, k), lo[k], hi[k]);
-      }
-    for (double& v : w)
-      if (!std::isfinite(v)) v = 0.0;
-  }
-  const std::vector<double> w_start = w;
-  const double a = std::sqrt(std::max(o.smooth_abs_epsilon, 1e-300));
-
-  // The weights for a fixed response: bounded Levenberg-Marquardt. Returns
-  // the objective (data, priors and the response's prior), or +inf when the
-  // solve is unusable (w is then left as it was).
-  const auto solve_weights = [&](const std::vector<bool>& hold, double g) {
-    std::vector<int> free_index;
-    for (int k = 0; k < sources; ++k)
-      if (!hold[k]) free_index.push_back(k);
-    const int free_n = static_cast<int>(free_index.size());
-    // The response's prior, soft |gamma - gamma0| as Ceres would weigh it
-    // (lambda a^2 (sqrt(1 + r^2/a^2) - 1)): constant within the solve, it
-    // ranks the responses tried.
-    const double gamma_weight = o.lambda_gamma + o.lambda_gamma_per_pixel * pixels;
-    const double gamma_cost = gamma_weight * a * (std::hypot(a, g - o.gamma0) - a);
-    std::vector<double> held_sum(pixels, 0.0);
-    for (size_t i = 0; i < pixels; ++i)
-      for (int k = 0; k < sources; ++k)
-        if (hold[k]) held_sum[i] += w[k] * rows[i * sources + k];
-    if (free_n == 0) {
-      // Nothing to solve: the objective at the held weights.
-      double cost = gamma_cost;
-      for (size_t i = 0; i < pixels; ++i) {
-        const double r = target[i] - std::pow(std::max(held_sum[i], kMinRenderedValue), g);
-        cost += a * (std::hypot(a, r) - a);
-      }
-      ++out.solves;
-      out.converged = true;
-      out.termination = "every weight is held";
-      return std::isfinite(cost) ? cost / a : std::numeric_limits<double>::infinity();
-    }
-    std::vector<double> trial(free_n);
-    for (int j = 0; j < free_n; ++j) trial[j] = w[free_index[j]];
-    ceres::Problem::Options po;
-    po.loss_function_ownership = ceres::TAKE_OWNERSHIP;
-    ceres::Problem problem(po);
-    // Q: per-pixel soft |.|, summed over pixels as in the paper.
-    for (size_t i = 0; i < pixels; ++i)
-      problem.AddResidualBlock(new PixelResidual(&rows[i * sources], free_index.data(), free_n, held_sum[i], g, target[i]),
-                               new ceres::SoftLOneLoss(a), trial.data());
-    // P: sparsity plus the basis-noise prior, |w_k| (1 + N_k) for w_k >= 0.
-    for (int j = 0; j < free_n; ++j) {
-      const int k = free_index[j];
-      const double noise = p.noise.empty() ? 0.0 : std::max(0.0, p.noise[k]);
-      problem.AddResidualBlock(new WeightResidual(j, free_n),
-                               new ceres::ScaledLoss(new ceres::SoftLOneLoss(a), o.lambda_prior * (1.0 + noise),
-                                                     ceres::TAKE_OWNERSHIP),
-                               trial.data());
-    }
-    for (int j = 0; j < free_n; ++j) {
-      const int k = free_index[j];
-      problem.SetParameterLowerBound(trial.data(), j, lo[k]);
-      if (std::isfinite(hi[k])) problem.SetParameterUpperBound(trial.data(), j, hi[k]);
-    }
-    ceres::Solver::Options so;
-    so.max_num_iterations = std::max(1, o.max_iterations);
-    so.max_solver_time_in_seconds = o.max_seconds;
-    so.linear_solver_type = ceres::DENSE_QR;
-    so.num_threads = 1;  // deterministic
-    so.function_tolerance = kFunctionTolerance;
-    so.gradient_tolerance = kGradientTolerance;
-    so.parameter_tolerance = kParameterTolerance;
-    ceres::Solver::Summary summary;
-    ceres::Solve(so, &problem, &summary);
-    out.iterations += static_cast<int>(summary.iterations.size());
-    ++out.solves;
-    out.converged = summary.termination_type == ceres::CONVERGENCE;
-    out.termination = summary.message;
-    const bool usable = summary.IsSolutionUsable() && std::isfinite(summary.final_cost) &&
-                        std::all_of(trial.begin(), trial.end(), [](double v) { return std::isfinite(v); });
-    if (!usable) return std::numeric_limits<double>::infinity();
-    for (int j = 0; j < free_n; ++j) w[free_index[j]] = trial[j];
-    return (summary.final_cost + gamma_cost) / a;  // in the objective's units
-  };
-
-  // The response: weights and response trade off along a shallow valley (a
-  // lower gamma brightens, so smaller weights do), where a joint solve
-  // stalled far from the optimum. So gamma is profiled: the weights are
-  // solved for each gamma of a log-spaced grid, then golden-section search
-  // between the best point's neighbours, warm-started from the best weights.
-  std::vector<bool> hold = held;
-  double best_gamma = o.gamma0;
-  double best_cost = solve_weights(hold, o.gamma0);
-  std::vector<double> best_w = w;
-  const auto consider = [&](double g) {
-    w = best_w;
-    const double cost = solve_weights(hold, g);
-    if (cost < best_cost) {
-      best_cost = cost;
-      best_gamma = g;
-      best_w = w;
-    }
-    return cost;
-  };
-  if (o.fit_gamma && o.max_gamma > o.min_gamma && o.min_gamma > 0) {
-    const int n = std::max(3, o.gamma_grid);
-    std::vector<double> grid(n);
-    for (int i = 0; i < n; ++i)
-      grid[i] = o.min_gamma * std::pow(o.max_gamma / o.min_gamma, static_cast<double>(i) / (n - 1));
-    std::vector<double> costs(n);
-    for (int i = 0; i < n; ++i) costs[i] = consider(grid[i]);
-    const int b = static_cast<int>(std::min_element(costs.begin(), costs.end()) - costs.begin());
-    // Bracket: the grid neighbours of the best grid point (and gamma0, if
-    // it lies between them, is already a candidate).
-    double lo_g = grid[std::max(0, b - 1)], hi_g = grid[std::min(n - 1, b + 1)];
-    constexpr double kGolden = 0.6180339887498949;
-    double x1 = hi_g - kGolden * (hi_g - lo_g), x2 = lo_g + kGolden * (hi_g - lo_g);
-    double f1 = consider(x1), f2 = consider(x2);
-    for (int it = 0; it < o.gamma_refinements && hi_g - lo_g > kGammaTolerance; ++it) {
-      if (f1 <= f2) {
-        hi_g = x2, x2 = x1, f2 = f1;
-        x1 = hi_g - kGolden * (hi_g - lo_g);
-        f1 = consider(x1);
-      } else {
-        lo_g = x1, x1 = x2, f1 = f2;
-        x2 = lo_g + kGolden * (hi_g - lo_g);
-        f2 = consider(x2);
-      }
-    }
-  }
-  w = best_w;
-  double gamma = best_gamma;
-  if (!std::isfinite(best_cost)) {
+  std::vector<bool> hold = bounds.held;
+  const BestFit best = profile_gamma(solver, hold, bounds.w, o, out);
+  std::vector<double> w = best.w;
+  double gamma = best.gamma;
+  if (!std::isfinite(best.cost)) {
     w = w_start;  // nothing usable: the least-squares start, prior response
     gamma = o.gamma0;
     out.converged = false;
   }
   // Prune lights that add (almost) nothing, then settle the rest without them.
-  double total = 0.0;
-  for (int k = 0; k < sources; ++k) total += w[k];  // each normalised basis has the photo's mean
-  bool pruned_any = false;
-  for (int k = 0; k < sources; ++k)
-    if (!held[k] && w[k] < o.prune_share * total) {
-      pruned_any = pruned_any || w[k] > 0.0;
-      w[k] = 0.0;
-      hold[k] = true;
-      ++out.pruned;
-    }
-  if (pruned_any && std::count(hold.begin(), hold.end(), false) > 0) solve_weights(hold, gamma);
+  if (prune_small_lights(bounds.held, o.prune_share, w, hold, out) && std::count(hold.begin(), hold.end(), false) > 0)
+    solver.solve(hold, gamma, w, out);
 
-  double data_error = 0.0;
-  for (size_t i = 0; i < pixels; ++i) {
-    double sum = 0.0;
-    for (int k = 0; k < sources; ++k) sum += w[k] * rows[i * sources + k];
-    data_error += std::abs(target[i] - std::pow(std::max(sum, kMinRenderedValue), gamma));
-  }
-  out.data_error = data_error / pixels;
-  for (int k = 0; k < sources; ++k) out.weights[k] = scale[k] > 0 ? std::max(0.0, w[k]) * scale[k] : 0.0;
+  out.data_error = mean_data_error(fit, w, gamma);
+  for (int k = 0; k < sources; ++k) out.weights[k] = fit.scale[k] > 0 ? std::max(0.0, w[k]) * fit.scale[k] : 0.0;
   out.gamma = gamma;
   return out;
 }
