@@ -14,6 +14,8 @@
 #include <unordered_map>
 #include <vector>
 
+#include "propcam/capture/image_file.h"
+
 #include <opencv2/imgproc.hpp>
 
 namespace propcam::ui_fb {
@@ -271,9 +273,7 @@ const std::array<double, 255>& srgb_step_thresholds() {
   static const std::array<double, 255> thresholds = [] {
     std::array<double, 255> result{};
     for (int k = 1; k <= 255; ++k) {
-      const double encoded = (k - 0.5) / 255.0;
-      result[static_cast<std::size_t>(k - 1)] =
-          encoded <= 0.04045 ? encoded / 12.92 : std::pow((encoded + 0.055) / 1.055, 2.4);
+      result[static_cast<std::size_t>(k - 1)] = capture::srgb_to_linear_precise((k - 0.5) / 255.0);
     }
     return result;
   }();

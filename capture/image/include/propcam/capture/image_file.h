@@ -13,6 +13,9 @@ namespace propcam::capture {
 // The exact sRGB transfer functions (IEC 61966-2-1).
 float srgb_to_linear(float encoded);
 float linear_to_srgb(float linear);
+// The decoding in double, for tables built once (ui_fb's 8-bit encoder):
+// the same curve, without float's rounding of its thresholds.
+double srgb_to_linear_precise(double encoded);
 
 // CV_8UC3 sRGB -> CV_32FC3 linear, and back (clamped, rounded).
 cv::Mat srgb8_to_linear(const cv::Mat& srgb8);

@@ -48,6 +48,11 @@ float srgb_to_linear(float v) {
   return v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f);
 }
 
+double srgb_to_linear_precise(double v) {
+  if (!(v > 0.0)) return 0.0;
+  return v <= 0.04045 ? v / 12.92 : std::pow((v + 0.055) / 1.055, 2.4);
+}
+
 float linear_to_srgb(float v) {
   if (!(v > 0.f)) return 0.f;
   return v <= 0.0031308f ? v * 12.92f : 1.055f * std::pow(v, 1.f / 2.4f) - 0.055f;
