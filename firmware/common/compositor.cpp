@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <stdexcept>
 
+#include "propcam/inference/scene_world.h"
 #include "propcam/render/depth_mesh.h"
 #include "propcam/render/mesh_io.h"
 #include "propcam/render/props.h"
@@ -83,17 +84,9 @@ CompositeWorld build_composite_world(const inference::SceneModel& scene, const r
     w.flattening = inference::flatten_insertion_region(w.depth, normals, w.camera, scene.planes, placement.pixel_u,
                                                        placement.pixel_v, footprint_radius_m);
   }
-  world.add_mesh(render::mesh_from_depth(w.depth, scene.albedo, w.camera), render::Layer::Background);
-  // The facades the lighting continued out of the frame shade the prop as they shaded the basis renders.
-  if (!scene.hidden_facades.empty()) {
-    render::Mesh hidden = inference::hidden_facade_mesh(scene.hidden_facades, w.depth, w.camera);
-    if (!hidden.empty()) world.add_mesh(hidden, render::Layer::Background);
-  }
-  // Indoors the room closed around the photo, as the lighting's basis renders had it.
-  if (!scene.enclosure.empty()) {
-    render::Mesh enclosure = inference::room_enclosure_mesh(scene.enclosure, w.depth, w.camera);
-    if (!enclosure.empty()) world.add_mesh(enclosure, render::Layer::Background);
-  }
+  // The world the lighting's basis renders saw (the facades it continued out
+  // of the frame, the box it closed the room with), at the photo's size.
+  inference::add_scene_world(world, w.depth, scene.albedo, w.camera, scene.hidden_facades, scene.enclosure);
 
   // The prop is an instance: the background's BVH is built once, placement
   // looks at the background alone, and then the prop is moved into place.

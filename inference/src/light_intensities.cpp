@@ -6,6 +6,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "propcam/capture/image_file.h"
+#include "propcam/inference/scene_world.h"
 #include "propcam/inference/hidden_facades.h"
 #include "propcam/inference/intensity_fit.h"
 #include "propcam/inference/room_enclosure.h"
@@ -69,38 +70,35 @@ FitImages fit_images(const cv::Mat& photo_linear, const cv::Mat& depth, const cv
 
 // Outdoors the buildings that shade the street nearest the camera are
 // mostly out of the frame: the seen facades are continued out of it.
-void add_hidden_facades(render::Scene& scene, const FitImages& fit, const cv::Mat& depth, const cv::Mat& albedo,
-                        const render::PinholeCamera& camera, const LightingOptions& options, const GeometryCues& cues,
-                        std::vector<HiddenFacade>& facades) {
-  if (!(!cues.normals.empty() && cues.normals.size() == depth.size())) return;
-  facades = find_hidden_facades(depth, cues.normals, albedo, camera, options.facades);
-  render::Mesh hidden = hidden_facade_mesh(facades, fit.depth, fit.camera, options.facades);
-  if (!hidden.empty()) scene.add_mesh(hidden, render::Layer::Background);
+std::vector<HiddenFacade> find_facades(const cv::Mat& depth, const cv::Mat& albedo, const render::PinholeCamera& camera,
+                                       const LightingOptions& options, const GeometryCues& cues) {
+  if (!(!cues.normals.empty() && cues.normals.size() == depth.size())) return {};
+  return find_hidden_facades(depth, cues.normals, albedo, camera, options.facades);
 }
 
 // Indoors the room is closed around the camera, its lamps inside.
-void add_room_enclosure(render::Scene& scene, const FitImages& fit, const cv::Mat& depth, const cv::Mat& albedo,
-                        const render::PinholeCamera& camera, const std::vector<SupportPlane>& planes,
-                        const LightingOptions& options, LightingEstimate& out) {
+RoomEnclosure close_room(const cv::Mat& depth, const cv::Mat& albedo, const render::PinholeCamera& camera,
+                         const std::vector<SupportPlane>& planes, const LightingOptions& options,
+                         const std::vector<LightSource>& lights) {
   std::vector<Vector3d> light_positions;
-  for (const LightSource& l : out.lights)
+  for (const LightSource& l : lights)
     if (l.type != LightSource::Type::Ibl && !distant_light_direction(l, camera.center_world)) light_positions.push_back(l.position);
-  out.enclosure = enclose_room(depth, albedo, camera, room_heights(planes), light_positions, options.enclosure);
-  render::Mesh enclosure = room_enclosure_mesh(out.enclosure, fit.depth, fit.camera, options.enclosure);
-  if (!enclosure.empty()) scene.add_mesh(enclosure, render::Layer::Background);
+  return enclose_room(depth, albedo, camera, room_heights(planes), light_positions, options.enclosure);
 }
 
-// The empty scene the basis renders see: the depth as a mesh, plus what
-// lies out of the frame (facades outdoors, the room's box indoors).
+// The empty scene the basis renders see, at the fit's size: the scene world
+// (scene_world.h) the composite renders too, with what lies out of the frame
+// found here (facades outdoors, the room's box indoors).
 void build_fit_scene(render::Scene& scene, const FitImages& fit, const cv::Mat& depth, const cv::Mat& albedo,
                      const render::PinholeCamera& camera, const std::vector<SupportPlane>& planes, bool indoor,
                      const LightingOptions& options, const GeometryCues& cues, LightingEstimate& out) {
-  render::DepthMeshOptions mesh_options;
-  mesh_options.step_pixels = 1;
-  scene.add_mesh(render::mesh_from_depth(fit.depth, fit.albedo, fit.camera, mesh_options), render::Layer::Background);
-  if (!indoor && options.hidden_facades)
-    add_hidden_facades(scene, fit, depth, albedo, camera, options, cues, out.hidden_facades);
-  if (indoor && options.enclose_room) add_room_enclosure(scene, fit, depth, albedo, camera, planes, options, out);
+  if (!indoor && options.hidden_facades) out.hidden_facades = find_facades(depth, albedo, camera, options, cues);
+  if (indoor && options.enclose_room) out.enclosure = close_room(depth, albedo, camera, planes, options, out.lights);
+  SceneWorldOptions world;
+  world.depth_mesh.step_pixels = 1;
+  world.facades = options.facades;
+  world.enclosure = options.enclosure;
+  add_scene_world(scene, fit.depth, fit.albedo, fit.camera, out.hidden_facades, out.enclosure, world);
   scene.commit();
 }
 
