@@ -92,6 +92,8 @@ class Appliance {
   void refresh_adjusted();
   void poll_usb();
   ui_fb::ScreenView build_view() const;
+  void fill_placement(ui_fb::ScreenView& view, const Analysis* analysis, const cv::Mat& preview,
+                      const std::string& prop_name) const;
   void draw_and_present();
   void take_snapshot(const std::string& label);
 

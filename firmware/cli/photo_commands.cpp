@@ -295,57 +295,51 @@ void add_composite_options(CLI::App& cmd, CompositeArgs& a) {
                "Leave the prop as rendered (the photo's blur and noise not matched)");
 }
 
-int run_composite_command(const CompositeArgs& a) {
-  Progress progress(a.json_out);
-  render::PropPlacement placement;
-  if (!parse_pair(a.at, placement.pixel_u, placement.pixel_v, ','))
-    throw std::invalid_argument("--at expects U,V in pixels, got '" + a.at + "'");
-  if (a.spp <= 0 || a.spp > kMaxCliSpp) throw std::invalid_argument("--spp must be in 1.." + std::to_string(kMaxCliSpp));
-  const int max_bounces = renderer_bounces(a.bounces);
+namespace {
+
+MaterialOverride material_from_args(const CompositeArgs& a) {
   MaterialOverride material;
   if (!a.material.empty()) material.type = a.material;
   if (!a.albedo.empty()) material.albedo = parse_rgb(a.albedo);
-  const firmware::JobBudget budget = job_budget_of(a.working_size, a.memory_mb, a.time_budget);
-  const render::Mesh prop = load_prop(a.prop, material);
-  placement.height_m = a.height > 0 ? a.height : natural_height(a.prop, prop);
-  placement.yaw_deg = a.yaw;
+  return material;
+}
 
-  inference::SceneModel scene;
-  firmware::WorkingPhoto loaded;
+// The scene folder's model and the photo at the size it was inferred at.
+void load_scene_folder(const CompositeArgs& a, const firmware::JobBudget& budget, Progress& progress,
+                       inference::SceneModel& scene, firmware::WorkingPhoto& loaded) {
+  scene = inference::load_scene(a.scene_dir);
+  firmware::JobBudget at_scene_size = budget;
+  at_scene_size.working_pixels = static_cast<long>(scene.width) * scene.height;
+  if (const std::string problem = firmware::memory_budget_problem(at_scene_size); !problem.empty())
+    throw std::invalid_argument("the scene folder '" + a.scene_dir + "' is " + std::to_string(scene.width) + "x" +
+                                std::to_string(scene.height) + ": " + problem + " (--memory-budget)");
+  if (scene.depth.empty())
+    throw std::invalid_argument("the scene folder '" + a.scene_dir + "' has no depth.exr: make it again with " +
+                                "`propcam infer PHOTO -o " + a.scene_dir + "`");
+  // The photo is worked at the size the scene was inferred at.
+  loaded = load_photo_for_work(a.photo, 0, progress, {scene.width, scene.height});
+  if (!firmware::same_view_reduced(loaded.full_size, loaded.working.size()))
+    throw std::invalid_argument("the scene folder '" + a.scene_dir + "' was inferred from a " +
+                                std::to_string(scene.width) + "x" + std::to_string(scene.height) +
+                                " photo; this photo is " + std::to_string(loaded.full_size.width) + "x" +
+                                std::to_string(loaded.full_size.height));
+}
+
+// The scene model (read, or inferred on the way) and the photo at its working size.
+void scene_and_photo(const CompositeArgs& a, const firmware::JobBudget& budget, Progress& progress,
+                     inference::SceneModel& scene, firmware::WorkingPhoto& loaded) {
   if (!a.scene_dir.empty()) {
-    scene = inference::load_scene(a.scene_dir);
-    firmware::JobBudget at_scene_size = budget;
-    at_scene_size.working_pixels = static_cast<long>(scene.width) * scene.height;
-    if (const std::string problem = firmware::memory_budget_problem(at_scene_size); !problem.empty())
-      throw std::invalid_argument("the scene folder '" + a.scene_dir + "' is " + std::to_string(scene.width) + "x" +
-                                  std::to_string(scene.height) + ": " + problem + " (--memory-budget)");
-    if (scene.depth.empty())
-      throw std::invalid_argument("the scene folder '" + a.scene_dir + "' has no depth.exr: make it again with " +
-                                  "`propcam infer PHOTO -o " + a.scene_dir + "`");
-    // The photo is worked at the size the scene was inferred at.
-    loaded = load_photo_for_work(a.photo, 0, progress, {scene.width, scene.height});
-    if (!firmware::same_view_reduced(loaded.full_size, loaded.working.size()))
-      throw std::invalid_argument("the scene folder '" + a.scene_dir + "' was inferred from a " +
-                                  std::to_string(scene.width) + "x" + std::to_string(scene.height) +
-                                  " photo; this photo is " + std::to_string(loaded.full_size.width) + "x" +
-                                  std::to_string(loaded.full_size.height));
-  } else {
-    loaded = load_photo_for_work(a.photo, budget.working_pixels, progress);
+    load_scene_folder(a, budget, progress, scene, loaded);
+    return;
   }
-  const cv::Mat& photo = loaded.working;
-  placement.pixel_u *= static_cast<double>(photo.cols) / loaded.full_size.width;
-  placement.pixel_v *= static_cast<double>(photo.rows) / loaded.full_size.height;
-  if (a.scene_dir.empty()) {
-    scene = infer_with_progress(photo, a.photo, a.camera_height, a.lens, progress, loaded.scale());
-    if (!a.json_out) print_reports(scene);
-    if (!a.save_scene.empty()) inference::save_scene(scene, a.save_scene);
-  }
-  render::RenderSettings settings;
-  settings.samples_per_pixel = a.spp;
-  settings.max_bounces = max_bounces;
-  settings.seed = a.seed;
-  settings.progress = progress.fraction_printer("render");
-  progress.stage("render: " + std::to_string(a.spp) + " spp, " + std::to_string(a.bounces) + " bounces");
+  loaded = load_photo_for_work(a.photo, budget.working_pixels, progress);
+  scene = infer_with_progress(loaded.working, a.photo, a.camera_height, a.lens, progress, loaded.scale());
+  if (!a.json_out) print_reports(scene);
+  if (!a.save_scene.empty()) inference::save_scene(scene, a.save_scene);
+}
+
+CompositeOptions composite_options(const CompositeArgs& a, const firmware::JobBudget& budget,
+                                   const firmware::WorkingPhoto& loaded) {
   CompositeOptions options;
   options.cull_tiles = !a.no_cull;
   options.plan.allow_skips = !a.no_cull;
@@ -357,86 +351,145 @@ int run_composite_command(const CompositeArgs& a) {
   // The prop's edges at the photo's own size, unless depth of field blurs them anyway.
   if (loaded.reduced() && a.aperture <= 0) options.full_size = loaded.full_size;
   options.scene_layers_width = a.relight_scene && !a.light_scale.empty() ? kSceneLayerWidth : 0;
+  return options;
+}
+
+// --light-scale, then --aperture: the rendered composite relit and given
+// depth of field. Returns the depth of field's JSON (null without).
+json finish_composite(const CompositeArgs& a, const cv::Mat& scene_photo, const inference::SceneModel& scene,
+                      const CompositeResult& result, const CompositeOptions& options, cv::Mat& image) {
+  if (!a.light_scale.empty()) {
+    const render::LightScales scales = parse_light_scales(a.light_scale, static_cast<int>(result.layers.change.size()));
+    image = a.relight_scene ? render::relight_scene(scene_photo, result.layers, result.scene_layers, scales)
+                            : render::relight_prop(scene_photo, result.layers, scales);
+    if (options.match_camera)
+      image = render::match_camera(scene_photo, image, result.render.coverage, scene.imaging, options.camera_match,
+                                   scene.gamma);
+  }
+  if (!(a.aperture > 0)) return nullptr;
+  render::DepthOfField dof;
+  dof.aperture_m = a.aperture;
+  // Focus on the prop unless told otherwise.
+  dof.focus_distance_m =
+      a.focus > 0 ? a.focus : scene.camera().world_to_camera(result.placed.base_world.cast<double>()).z();
+  image = render::apply_depth_of_field(image, result.depth, scene.fx, dof);
+  return {{"aperture_m", dof.aperture_m}, {"focus_m", dof.focus_distance_m}};
+}
+
+void write_composite(const CompositeArgs& a, const firmware::WorkingPhoto& loaded, const cv::Mat& scene_photo,
+                     const cv::Mat& image, const CompositeResult& result, double gamma, Progress& progress) {
+  if (!loaded.reduced()) {
+    capture::write_image(a.out, capture::response_linear_to_srgb_linear(image, gamma));
+    return;
+  }
+  // The composite at the photo's own size: the working composite's change
+  // carried up onto the full photo, in the same response-linear space.
+  const cv::Size output_size = loaded.full_size;
+  progress.stage("composite at " + std::to_string(output_size.width) + "x" + std::to_string(output_size.height));
+  firmware::FullSizeDelivery delivery(scene_photo, image, result.render.coverage, output_size);
+  delivery.use_sharp_coverage(result.full_size_coverage);
+  firmware::write_full_size_composite(loaded, a.out, delivery, gamma);
+}
+
+double share_untouched_by_prop(const render::RenderStats& st) {
+  return st.camera_samples ? static_cast<double>(st.paths_prop_untouched) / st.camera_samples : 0.0;
+}
+
+json composite_summary(const CompositeArgs& a, const firmware::WorkingPhoto& loaded, const CompositeResult& result,
+                       const render::PropPlacement& placement, const firmware::JobBudget& budget, const json& plan,
+                       const json& dof_json, double total_seconds) {
+  const auto& st = result.render.stats;
+  return {{"output", a.out},
+          {"output_size", {loaded.full_size.width, loaded.full_size.height}},
+          {"working_size", size_json(loaded.working)},
+          {"prop", a.prop},
+          {"base_world", {result.placed.base_world.x(), result.placed.base_world.y(), result.placed.base_world.z()}},
+          {"height_m", placement.height_m},
+          {"render_seconds", st.seconds},
+          {"scene_build_seconds", result.scene_build_seconds},
+          {"samples_per_pixel", result.samples_per_pixel},
+          {"time_budget", {{"seconds", budget.render_seconds}, {"stopped_render", result.stopped_by_time_budget}}},
+          {"rays", st.rays},
+          {"samples_untouched_by_prop", share_untouched_by_prop(st)},
+          {"denoise", {{"on", !a.no_denoise},
+                       {"tiles_judged", result.denoise.tiles_judged},
+                       {"tiles_filtered", result.denoise.tiles_filtered},
+                       {"seconds", result.denoise.seconds}}},
+          {"plan", plan},
+          {"camera_match", camera_match_json(result.camera_match)},
+          {"insertion_constraint", {{"applied", result.flattening.applied},
+                                    {"plane_height_m", result.flattening.plane_height_m},
+                                    {"pixels", result.flattening.pixels_changed},
+                                    {"why", result.flattening.why}}},
+          {"depth_of_field", dof_json},
+          {"full_size_edges", {{"pixels", result.full_size_coverage.region.area()},
+                               {"rays_per_pixel", result.full_size_coverage.rays_per_side *
+                                                      result.full_size_coverage.rays_per_side},
+                               {"seconds", result.full_size_coverage.seconds}}},
+          {"total_seconds", total_seconds}};
+}
+
+void print_composite_report(const CompositeArgs& a, const CompositeResult& result, const firmware::JobBudget& budget,
+                            const json& plan) {
+  const auto& st = result.render.stats;
+  if (!Progress::all_silenced()) {
+    std::fprintf(stderr, "render %.2fs, %.1f Mrays, %.0f%% of traced samples untouched by the prop (no second path)\n",
+                 st.seconds, st.rays / 1e6, 100.0 * share_untouched_by_prop(st));
+    if (result.stopped_by_time_budget)
+      std::fprintf(stderr, "render stopped at %d of %d spp: the next pass would have ended after the time budget "
+                   "of %g s (--time-budget)\n", result.samples_per_pixel, a.spp, budget.render_seconds);
+  }
+  if (a.explain) {
+    print_render_plan(plan);
+    if (result.camera_match.steps.empty()) std::fprintf(stderr, "camera: match off (--no-camera-match)\n");
+    for (const auto& step : result.camera_match.steps)
+      std::fprintf(stderr, "camera: %-20s %-9s %s\n", step.effect.c_str(), step.applied ? "match" : "skip", step.why.c_str());
+  }
+}
+
+}  // namespace
+
+int run_composite_command(const CompositeArgs& a) {
+  Progress progress(a.json_out);
+  render::PropPlacement placement;
+  if (!parse_pair(a.at, placement.pixel_u, placement.pixel_v, ','))
+    throw std::invalid_argument("--at expects U,V in pixels, got '" + a.at + "'");
+  if (a.spp <= 0 || a.spp > kMaxCliSpp) throw std::invalid_argument("--spp must be in 1.." + std::to_string(kMaxCliSpp));
+  const int max_bounces = renderer_bounces(a.bounces);
+  const MaterialOverride material = material_from_args(a);
+  const firmware::JobBudget budget = job_budget_of(a.working_size, a.memory_mb, a.time_budget);
+  const render::Mesh prop = load_prop(a.prop, material);
+  placement.height_m = a.height > 0 ? a.height : natural_height(a.prop, prop);
+  placement.yaw_deg = a.yaw;
+
+  inference::SceneModel scene;
+  firmware::WorkingPhoto loaded;
+  scene_and_photo(a, budget, progress, scene, loaded);
+  const cv::Mat& photo = loaded.working;
+  placement.pixel_u *= static_cast<double>(photo.cols) / loaded.full_size.width;
+  placement.pixel_v *= static_cast<double>(photo.rows) / loaded.full_size.height;
+
+  render::RenderSettings settings;
+  settings.samples_per_pixel = a.spp;
+  settings.max_bounces = max_bounces;
+  settings.seed = a.seed;
+  settings.progress = progress.fraction_printer("render");
+  progress.stage("render: " + std::to_string(a.spp) + " spp, " + std::to_string(a.bounces) + " bounces");
+  const CompositeOptions options = composite_options(a, budget, loaded);
   // Light is added in the photo's own linear space: its camera response
   // (fitted with the light intensities) undone, and redone at the end.
   const cv::Mat scene_photo = capture::srgb_linear_to_response_linear(photo, scene.gamma);
   const CompositeResult result = composite_prop(scene_photo, scene, prop, placement, settings, options);
   const json plan = render_plan_json(result);
   cv::Mat final_image = result.composite_linear;
-  if (!a.light_scale.empty()) {
-    const render::LightScales scales = parse_light_scales(a.light_scale, static_cast<int>(result.layers.change.size()));
-    final_image = a.relight_scene ? render::relight_scene(scene_photo, result.layers, result.scene_layers, scales)
-                                  : render::relight_prop(scene_photo, result.layers, scales);
-    if (options.match_camera)
-      final_image = render::match_camera(scene_photo, final_image, result.render.coverage, scene.imaging,
-                                         options.camera_match, scene.gamma);
-  }
-  json dof_json = nullptr;
-  if (a.aperture > 0) {
-    render::DepthOfField dof;
-    dof.aperture_m = a.aperture;
-    // Focus on the prop unless told otherwise.
-    dof.focus_distance_m = a.focus > 0 ? a.focus
-                                       : scene.camera().world_to_camera(result.placed.base_world.cast<double>()).z();
-    final_image = render::apply_depth_of_field(final_image, result.depth, scene.fx, dof);
-    dof_json = {{"aperture_m", dof.aperture_m}, {"focus_m", dof.focus_distance_m}};
-  }
-  const cv::Size output_size = loaded.full_size;
-  if (loaded.reduced()) {
-    // The composite at the photo's own size: the working composite's change
-    // carried up onto the full photo, in the same response-linear space.
-    progress.stage("composite at " + std::to_string(output_size.width) + "x" + std::to_string(output_size.height));
-    firmware::FullSizeDelivery delivery(scene_photo, final_image, result.render.coverage, output_size);
-    delivery.use_sharp_coverage(result.full_size_coverage);
-    firmware::write_full_size_composite(loaded, a.out, delivery, scene.gamma);
+  const json dof_json = finish_composite(a, scene_photo, scene, result, options, final_image);
+  write_composite(a, loaded, scene_photo, final_image, result, scene.gamma, progress);
+
+  if (a.json_out) {
+    std::cout << composite_summary(a, loaded, result, placement, budget, plan, dof_json, progress.elapsed()).dump(2)
+              << std::endl;
   } else {
-    capture::write_image(a.out, capture::response_linear_to_srgb_linear(final_image, scene.gamma));
-  }
-  const auto& st = result.render.stats;
-  const double skipped = st.camera_samples ? static_cast<double>(st.paths_prop_untouched) / st.camera_samples : 0.0;
-  json summary = {{"output", a.out},
-                  {"output_size", {output_size.width, output_size.height}},
-                  {"working_size", size_json(photo)},
-                  {"prop", a.prop},
-                  {"base_world", {result.placed.base_world.x(), result.placed.base_world.y(), result.placed.base_world.z()}},
-                  {"height_m", placement.height_m},
-                  {"render_seconds", st.seconds},
-                  {"scene_build_seconds", result.scene_build_seconds},
-                  {"samples_per_pixel", result.samples_per_pixel},
-                  {"time_budget", {{"seconds", budget.render_seconds}, {"stopped_render", result.stopped_by_time_budget}}},
-                  {"rays", st.rays},
-                  {"samples_untouched_by_prop", skipped},
-                  {"denoise", {{"on", !a.no_denoise},
-                               {"tiles_judged", result.denoise.tiles_judged},
-                               {"tiles_filtered", result.denoise.tiles_filtered},
-                               {"seconds", result.denoise.seconds}}},
-                  {"plan", plan},
-                  {"camera_match", camera_match_json(result.camera_match)},
-                  {"insertion_constraint", {{"applied", result.flattening.applied},
-                                            {"plane_height_m", result.flattening.plane_height_m},
-                                            {"pixels", result.flattening.pixels_changed},
-                                            {"why", result.flattening.why}}},
-                  {"depth_of_field", dof_json},
-                  {"full_size_edges", {{"pixels", result.full_size_coverage.region.area()},
-                                       {"rays_per_pixel", result.full_size_coverage.rays_per_side *
-                                                              result.full_size_coverage.rays_per_side},
-                                       {"seconds", result.full_size_coverage.seconds}}},
-                  {"total_seconds", progress.elapsed()}};
-  if (a.json_out) std::cout << summary.dump(2) << std::endl;
-  else {
-    if (!Progress::all_silenced()) {
-      std::fprintf(stderr, "render %.2fs, %.1f Mrays, %.0f%% of traced samples untouched by the prop (no second path)\n",
-                   st.seconds, st.rays / 1e6, 100.0 * skipped);
-      if (result.stopped_by_time_budget)
-        std::fprintf(stderr, "render stopped at %d of %d spp: the next pass would have ended after the time budget "
-                     "of %g s (--time-budget)\n", result.samples_per_pixel, a.spp, budget.render_seconds);
-    }
-    if (a.explain) {
-      print_render_plan(plan);
-      if (result.camera_match.steps.empty()) std::fprintf(stderr, "camera: match off (--no-camera-match)\n");
-      for (const auto& step : result.camera_match.steps)
-        std::fprintf(stderr, "camera: %-20s %-9s %s\n", step.effect.c_str(), step.applied ? "match" : "skip", step.why.c_str());
-    }
+    print_composite_report(a, result, budget, plan);
     progress.stage("wrote " + a.out);
   }
   return 0;
