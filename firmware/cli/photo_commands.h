@@ -12,11 +12,10 @@
 
 namespace propcam::firmware {
 
-// A calibrated lens (the board's calibration): its focal length in pixels at
-// the photo's resolution, a prior for the camera stage or, fixed, the focal length.
-// The lens: a calibrated focal length given on the command line wins;
-// otherwise the photo's EXIF focal length (if any) is the camera stage's
-// prior (not fixed: the lines may still overrule it).
+// The lens: a calibrated focal length in pixels at the photo's size, given on
+// the command line, is the camera stage's prior or, fixed, its focal length;
+// otherwise the photo's EXIF focal length (if any) is the prior (not fixed:
+// the lines may still overrule it).
 struct LensPrior {
   double focal_px = 0;  // 0: none
   bool fixed = false;
