@@ -1,7 +1,6 @@
 #include "bench/bench.h"
 
 #include <chrono>
-#include <iostream>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -302,11 +301,7 @@ int run_bench_command(BenchArgs a) {
   constexpr int kMinBenchSide = 32;
   parse_bench_size(a.size, kMinBenchSide, a.options.width, a.options.height);
   a.options.quiet = a.json_out;
-  const nlohmann::json result = run_bench(a.options);
-  if (!a.options.plot_dir.empty()) plot_bench(result, a.options.plot_dir);
-  if (a.json_out) std::cout << result.dump(2) << std::endl;
-  else std::cout << format_bench(result);
-  return 0;
+  return report_bench_result(run_bench(a.options), a.json_out, a.options.plot_dir, plot_bench, format_bench);
 }
 
 }  // namespace propcam::firmware

@@ -8,11 +8,11 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <iostream>
 #include <map>
 #include <numbers>
 #include <sstream>
 
+#include "common/bench_common.h"
 #include "common/progress.h"
 #include "propcam/inference/camera.h"
 
@@ -434,11 +434,7 @@ int run_bench_camera_command(CameraBenchArgs a) {
   if (a.options.sweep_images < 0 || a.options.max_images < 0)
     throw std::invalid_argument("--max-images and --sweep-images must be >= 0");
   a.options.quiet = a.json_out;
-  const json result = run_camera_bench(a.options);
-  if (!a.options.plot_dir.empty()) plot_camera_bench(result, a.options.plot_dir);
-  if (a.json_out) std::cout << result.dump(2) << std::endl;
-  else std::cout << format_camera_bench(result);
-  return 0;
+  return report_bench_result(run_camera_bench(a.options), a.json_out, a.options.plot_dir, plot_camera_bench, format_camera_bench);
 }
 
 }  // namespace propcam::firmware

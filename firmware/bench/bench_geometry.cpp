@@ -8,7 +8,6 @@
 #include <cstdio>
 #include <filesystem>
 #include <functional>
-#include <iostream>
 #include <numbers>
 #include <sstream>
 
@@ -365,11 +364,7 @@ int run_bench_geometry_command(GeometryBenchArgs a) {
   parse_bench_size(a.size, 16, a.options.width, a.options.height);
   a.options.sweeps = parse_sweeps(a.sweeps, {"default", "camera", "resolution", "iterations", "transfer", "priors"});
   a.options.quiet = a.json_out;
-  const json result = run_geometry_bench(a.options);
-  if (!a.options.plot_dir.empty()) plot_geometry_bench(result, a.options.plot_dir);
-  if (a.json_out) std::cout << result.dump(2) << std::endl;
-  else std::cout << format_geometry_bench(result);
-  return 0;
+  return report_bench_result(run_geometry_bench(a.options), a.json_out, a.options.plot_dir, plot_geometry_bench, format_geometry_bench);
 }
 
 }  // namespace propcam::firmware

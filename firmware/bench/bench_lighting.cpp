@@ -7,7 +7,6 @@
 #include <cstdio>
 #include <filesystem>
 #include <functional>
-#include <iostream>
 #include <numbers>
 #include <opencv2/imgproc.hpp>
 #include <random>
@@ -531,11 +530,7 @@ int run_bench_lighting_command(LightingBenchArgs a) {
   parse_bench_size(a.size, 16, a.options.width, a.options.height);
   a.options.sweeps = parse_sweeps(a.sweeps, {"default", "basis_spp", "basis_width", "fit_pixels", "superpixels", "tint", "ibl", "sky", "sun", "facades", "nosun", "sun_strength", "albedo", "response", "oracle"});
   a.options.quiet = a.json_out;
-  const json result = run_lighting_bench(a.options);
-  if (!a.options.plot_dir.empty()) plot_lighting_bench(result, a.options.plot_dir);
-  if (a.json_out) std::cout << result.dump(2) << std::endl;
-  else std::cout << format_lighting_bench(result);
-  return 0;
+  return report_bench_result(run_lighting_bench(a.options), a.json_out, a.options.plot_dir, plot_lighting_bench, format_lighting_bench);
 }
 
 }  // namespace propcam::firmware

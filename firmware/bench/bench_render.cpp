@@ -8,7 +8,6 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <iostream>
 #include <optional>
 #include <sstream>
 #include <stdexcept>
@@ -369,11 +368,7 @@ int run_bench_render_command(RenderBenchArgs a) {
   a.options.sizes = parse_sizes(a.sizes);
   parse_bench_size(a.skip_size, kMinSkipSide, a.options.skip_size.width, a.options.skip_size.height, "--skip-size");
   a.options.quiet = a.json_out;
-  const nlohmann::json result = run_render_bench(a.options);
-  if (!a.options.plot_dir.empty()) plot_render_bench(result, a.options.plot_dir);
-  if (a.json_out) std::cout << result.dump(2) << std::endl;
-  else std::cout << format_render_bench(result);
-  return 0;
+  return report_bench_result(run_render_bench(a.options), a.json_out, a.options.plot_dir, plot_render_bench, format_render_bench);
 }
 
 }  // namespace propcam::firmware

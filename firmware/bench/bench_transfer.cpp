@@ -4,11 +4,11 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <iostream>
 #include <limits>
 #include <sstream>
 #include <stdexcept>
 
+#include "common/bench_common.h"
 #include "common/progress.h"
 #include "propcam/inference/depth_transfer.h"
 #include "propcam/render/depth_mesh.h"
@@ -188,10 +188,7 @@ int run_bench_transfer_command(TransferBenchArgs a) {
     }
   if (a.options.ks.empty()) throw std::invalid_argument("--k: at least one candidate count");
   a.options.quiet = a.json_out;
-  const nlohmann::json result = run_transfer_bench(a.options);
-  if (a.json_out) std::cout << result.dump(2) << std::endl;
-  else std::cout << format_transfer_bench(result);
-  return 0;
+  return report_bench_result(run_transfer_bench(a.options), a.json_out, "", nullptr, format_transfer_bench);
 }
 
 }  // namespace propcam::firmware

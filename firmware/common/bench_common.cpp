@@ -1,5 +1,7 @@
 #include "common/bench_common.h"
 
+#include <iostream>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
@@ -64,6 +66,14 @@ std::vector<std::string> parse_sweeps(const std::string& text, const std::vector
     out.push_back(s);
   }
   return out;
+}
+
+int report_bench_result(const nlohmann::json& result, bool json_out, const std::string& plot_dir,
+                        const BenchPlot& plot, const BenchFormat& format) {
+  if (plot && !plot_dir.empty()) plot(result, plot_dir);
+  if (json_out) std::cout << result.dump(2) << std::endl;
+  else std::cout << format(result);
+  return 0;
 }
 
 }  // namespace propcam::firmware

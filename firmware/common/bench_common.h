@@ -1,7 +1,9 @@
-// Helpers shared by `propcam bench` and `propcam bench render`: image errors
-// over a region, and gnuplot.
+// Helpers shared by the `propcam bench` commands: image errors over a region,
+// gnuplot, their options and how they report a result.
 #pragma once
 
+#include <functional>
+#include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <string>
 #include <vector>
@@ -25,5 +27,13 @@ void run_gnuplot(const std::string& dir, const std::string& script_name, const s
 void parse_bench_size(const std::string& text, int min_side, int& width, int& height, const std::string& option = "--size");
 // `--sweeps a,b,c`: each name must be one of `known`; throws std::invalid_argument.
 std::vector<std::string> parse_sweeps(const std::string& text, const std::vector<std::string>& known);
+
+// What every bench command does with its result: plots it into `plot_dir`
+// when one is given (and `plot` is set), then prints it on stdout as JSON or
+// as its table. Returns the command's exit code, 0.
+using BenchPlot = std::function<void(const nlohmann::json& result, const std::string& dir)>;
+using BenchFormat = std::function<std::string(const nlohmann::json& result)>;
+int report_bench_result(const nlohmann::json& result, bool json_out, const std::string& plot_dir,
+                        const BenchPlot& plot, const BenchFormat& format);
 
 }  // namespace propcam::firmware

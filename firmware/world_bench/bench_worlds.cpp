@@ -6,7 +6,6 @@
 #include <cstdio>
 #include <filesystem>
 #include <functional>
-#include <iostream>
 #include <map>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
@@ -662,11 +661,7 @@ int run_bench_worlds_command(WorldsBenchArgs a) {
   a.options.sweeps = parse_sweeps(a.sweeps, {"spp", "albedo", "grey_world", "fit", "lights", "outdoor_sources", "enclosure", "geometry", "oracle", "camera", "colour"});
   parse_bench_size(a.own_size, 16, a.options.own.width, a.options.own.height);
   a.options.quiet = a.json_out;
-  const json result = run_worlds_bench(a.options);
-  if (!a.options.plot_dir.empty()) plot_worlds_bench(result, a.options.plot_dir);
-  if (a.json_out) std::cout << result.dump(2) << std::endl;
-  else std::cout << format_worlds_bench(result);
-  return 0;
+  return report_bench_result(run_worlds_bench(a.options), a.json_out, a.options.plot_dir, plot_worlds_bench, format_worlds_bench);
 }
 
 }  // namespace propcam::firmware
