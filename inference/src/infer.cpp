@@ -222,11 +222,13 @@ StageReport imaging_report(const render::PhotoImaging& m) {
   StageReport r;
   r.stage = "imaging";
   r.seconds = m.seconds;
-  char blur[48] = "not measured (too few isolated edges)", noise[48] = "not measured (too few flat blocks)";
-  if (m.blur_measured) std::snprintf(blur, sizeof blur, "sigma %.2f px", m.blur_sigma_px);
+  char blur[64] = "not measured (too few isolated edges)", noise[48] = "not measured (too few flat blocks)";
+  if (m.blur_measured)
+    std::snprintf(blur, sizeof blur, "sigma %.2f px%s", m.blur_sigma_px,
+                  m.blur_read_through_noise ? " (read through the noise)" : "");
   if (m.noise_measured) std::snprintf(noise, sizeof noise, "%.1f levels (median)", m.noise.median_8bit());
   r.why = std::string("edge blur ") + blur + ", noise " + noise;
-  r.details = {{"blur_sigma_px", m.blur_sigma_px}, {"blur_edges", m.blur_edges},
+  r.details = {{"blur_sigma_px", m.blur_sigma_px}, {"blur_edges", m.blur_edges}, {"blur_read_through_noise", m.blur_read_through_noise},
                {"noise_median_8bit", m.noise.median_8bit()}, {"noise_blocks", m.noise_blocks}};
   return r;
 }

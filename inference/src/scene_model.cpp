@@ -65,7 +65,8 @@ json imaging_json(const render::PhotoImaging& m) {
   json sigma = json::array();
   for (const auto& bin : m.noise.sigma) sigma.push_back({bin[0], bin[1], bin[2]});
   return {{"blur_measured", m.blur_measured}, {"blur_sigma_px", m.blur_sigma_px}, {"blur_edges", m.blur_edges},
-          {"noise_measured", m.noise_measured}, {"noise_blocks", m.noise_blocks}, {"noise_sigma", sigma}};
+          {"blur_read_through_noise", m.blur_read_through_noise}, {"noise_measured", m.noise_measured},
+          {"noise_blocks", m.noise_blocks}, {"noise_sigma", sigma}};
 }
 
 render::PhotoImaging imaging_from_json(const json& j) {
@@ -73,6 +74,7 @@ render::PhotoImaging imaging_from_json(const json& j) {
   m.blur_measured = j.value("blur_measured", false);
   m.blur_sigma_px = j.value("blur_sigma_px", 0.0);
   m.blur_edges = json_int_or(j, "blur_edges", 0);
+  m.blur_read_through_noise = j.value("blur_read_through_noise", false);
   m.noise_measured = j.value("noise_measured", false);
   m.noise_blocks = json_int_or(j, "noise_blocks", 0);
   const json sigma = j.value("noise_sigma", json::array());

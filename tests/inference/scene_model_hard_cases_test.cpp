@@ -109,6 +109,7 @@ TEST_F(SceneJsonHardCases, ThePhotosImagingRoundTripsAndIsBounded) {
   EXPECT_FALSE(scene.imaging.blur_measured) << "an older scene.json has no imaging: nothing is matched";
   scene.imaging.blur_measured = true;
   scene.imaging.blur_sigma_px = 1.25;
+  scene.imaging.blur_read_through_noise = true;
   scene.imaging.noise_measured = true;
   scene.imaging.noise.sigma[3] = {0.01f, 0.02f, 0.03f};
   const fs::path saved = dir_ / "saved";
@@ -116,6 +117,7 @@ TEST_F(SceneJsonHardCases, ThePhotosImagingRoundTripsAndIsBounded) {
   const SceneModel back = load_scene(saved.string());
   EXPECT_TRUE(back.imaging.blur_measured);
   EXPECT_DOUBLE_EQ(back.imaging.blur_sigma_px, 1.25);
+  EXPECT_TRUE(back.imaging.blur_read_through_noise);
   EXPECT_FLOAT_EQ(back.imaging.noise.sigma[3][2], 0.03f);
   const std::string base = scene_json();
   const auto with_imaging = [&](const std::string& imaging) {

@@ -4,7 +4,9 @@
 //   - blur: a Gaussian point spread on top of a pixel's own footprint (lens,
 //     demosaicing, resampling, JPEG), measured at isolated step edges (their
 //     lower quartile) by re-blurring (Zhuo & Sim 2011), with the discrete
-//     operators' own response calibrated out;
+//     operators' own response calibrated out; in a noisy photo the edges
+//     are found on the smoothed luminance and read summed along each edge,
+//     so that noise does not read as sharpness;
 //   - noise: a noise level function per channel in display values (the
 //     signal-dependent sensor noise after the tone curve), the lower
 //     envelope of a Laplacian-like residual (Immerkaer 1996) over 8x8 blocks,
@@ -37,7 +39,8 @@ struct NoiseLevelFunction {
 struct PhotoImaging {
   bool blur_measured = false;   // enough isolated edges to tell
   double blur_sigma_px = 0.0;   // Gaussian sigma beyond a box pixel
-  int blur_edges = 0;           // edge pixels the estimate is the median of
+  int blur_edges = 0;           // edge pixels the estimate is the lower quartile of
+  bool blur_read_through_noise = false;  // a noisy photo's: edges found smoothed, read summed along each edge
   bool noise_measured = false;  // enough flat blocks to tell
   NoiseLevelFunction noise;
   int noise_blocks = 0;         // blocks the lower envelope was taken over
