@@ -5,7 +5,9 @@
 # error fails its test, and leaks are reported except the third-party ones
 # named in tests/sanitize/lsan.supp. Tests labelled slow_under_asan (over
 # about 20 s under ASan, set in tests/CMakeLists.txt) and the soak and qemu
-# suites are left out; the release suite runs them.
+# suites are left out; the release suite runs them. The preset registers one
+# ctest test per gtest suite (PROPCAM_CTEST_BY_SUITE): a sanitized test
+# program takes about 1 s of CPU to start, more than most tests.
 #
 #   bash scripts/sanitize.sh            every program, what CI runs (scripts/test.sh)
 #   bash scripts/sanitize.sh --modules  the library modules' own programs only (label
