@@ -493,18 +493,20 @@ constexpr double kNoisyBlurFloor8bit = 0.9;  // levels of noise (the function's 
 constexpr double kEdgeFindingBlurPx = 1.0;
 constexpr int kAlongEdgePx = 3;
 
-void measure_blur_through_noise(const cv::Mat& luminance, PhotoImaging& imaging) {
+// False when too few edges are found so: then the photo is read directly.
+bool measure_blur_through_noise(const cv::Mat& luminance, PhotoImaging& imaging) {
   const int ksize = gaussian_ksize(kEdgeFindingBlurPx);
   cv::Mat smoothed;
   cv::GaussianBlur(luminance, smoothed, {ksize, ksize}, kEdgeFindingBlurPx, kEdgeFindingBlurPx, cv::BORDER_REFLECT);
   int edges = 0;
   const double sigma =
       edge_blur_of(luminance, encoded_luminance_of(smoothed), {}, &edges, kMinBlurEdges, kAlongEdgePx);
-  if (edges == 0) return;  // too few edges to tell: keep the direct reading
+  if (edges == 0) return false;
   imaging.blur_measured = true;
   imaging.blur_sigma_px = sigma;
   imaging.blur_edges = edges;
   imaging.blur_read_through_noise = true;
+  return true;
 }
 
 }  // namespace
@@ -524,10 +526,11 @@ PhotoImaging estimate_photo_imaging(const cv::Mat& photo_srgb_linear) {
   const PhotoPlanes planes = photo_planes(photo_srgb_linear);
   out.noise = estimate_noise_level(planes.display, {}, &out.noise_blocks);
   out.noise_measured = out.noise_blocks > 0;
-  out.blur_sigma_px = edge_blur_of(planes.luminance, planes.encoded_luminance, {}, &out.blur_edges, kMinBlurEdges);
-  out.blur_measured = out.blur_edges > 0;
-  if (out.noise_measured && out.noise.median_8bit() >= kNoisyBlurFloor8bit)
-    measure_blur_through_noise(planes.luminance, out);
+  const bool noisy = out.noise_measured && out.noise.median_8bit() >= kNoisyBlurFloor8bit;
+  if (!noisy || !measure_blur_through_noise(planes.luminance, out)) {
+    out.blur_sigma_px = edge_blur_of(planes.luminance, planes.encoded_luminance, {}, &out.blur_edges, kMinBlurEdges);
+    out.blur_measured = out.blur_edges > 0;
+  }
   out.seconds = std::chrono::duration<double>(Clock::now() - start).count();
   return out;
 }
