@@ -434,7 +434,8 @@ int run_bench_camera_command(CameraBenchArgs a) {
   if (a.options.sweep_images < 0 || a.options.max_images < 0)
     throw std::invalid_argument("--max-images and --sweep-images must be >= 0");
   a.options.quiet = a.json_out;
-  return report_bench_result(run_camera_bench(a.options), a.json_out, a.options.plot_dir, plot_camera_bench, format_camera_bench);
+  return report_bench_result(run_camera_bench(a.options),
+                             a.json_out, a.options.plot_dir, plot_camera_bench, format_camera_bench);
 }
 
 }  // namespace propcam::firmware

@@ -364,7 +364,8 @@ int run_bench_geometry_command(GeometryBenchArgs a) {
   parse_bench_size(a.size, 16, a.options.width, a.options.height);
   a.options.sweeps = parse_sweeps(a.sweeps, {"default", "camera", "resolution", "iterations", "transfer", "priors"});
   a.options.quiet = a.json_out;
-  return report_bench_result(run_geometry_bench(a.options), a.json_out, a.options.plot_dir, plot_geometry_bench, format_geometry_bench);
+  return report_bench_result(run_geometry_bench(a.options),
+                             a.json_out, a.options.plot_dir, plot_geometry_bench, format_geometry_bench);
 }
 
 }  // namespace propcam::firmware

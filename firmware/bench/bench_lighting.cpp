@@ -530,7 +530,8 @@ int run_bench_lighting_command(LightingBenchArgs a) {
   parse_bench_size(a.size, 16, a.options.width, a.options.height);
   a.options.sweeps = parse_sweeps(a.sweeps, {"default", "basis_spp", "basis_width", "fit_pixels", "superpixels", "tint", "ibl", "sky", "sun", "facades", "nosun", "sun_strength", "albedo", "response", "oracle"});
   a.options.quiet = a.json_out;
-  return report_bench_result(run_lighting_bench(a.options), a.json_out, a.options.plot_dir, plot_lighting_bench, format_lighting_bench);
+  return report_bench_result(run_lighting_bench(a.options),
+                             a.json_out, a.options.plot_dir, plot_lighting_bench, format_lighting_bench);
 }
 
 }  // namespace propcam::firmware

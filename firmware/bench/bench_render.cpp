@@ -368,7 +368,8 @@ int run_bench_render_command(RenderBenchArgs a) {
   a.options.sizes = parse_sizes(a.sizes);
   parse_bench_size(a.skip_size, kMinSkipSide, a.options.skip_size.width, a.options.skip_size.height, "--skip-size");
   a.options.quiet = a.json_out;
-  return report_bench_result(run_render_bench(a.options), a.json_out, a.options.plot_dir, plot_render_bench, format_render_bench);
+  return report_bench_result(run_render_bench(a.options),
+                             a.json_out, a.options.plot_dir, plot_render_bench, format_render_bench);
 }
 
 }  // namespace propcam::firmware

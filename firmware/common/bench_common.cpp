@@ -1,12 +1,11 @@
 #include "common/bench_common.h"
 
-#include <iostream>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
 #include <sstream>
 #include <stdexcept>
 

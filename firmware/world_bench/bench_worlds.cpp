@@ -661,7 +661,8 @@ int run_bench_worlds_command(WorldsBenchArgs a) {
   a.options.sweeps = parse_sweeps(a.sweeps, {"spp", "albedo", "grey_world", "fit", "lights", "outdoor_sources", "enclosure", "geometry", "oracle", "camera", "colour"});
   parse_bench_size(a.own_size, 16, a.options.own.width, a.options.own.height);
   a.options.quiet = a.json_out;
-  return report_bench_result(run_worlds_bench(a.options), a.json_out, a.options.plot_dir, plot_worlds_bench, format_worlds_bench);
+  return report_bench_result(run_worlds_bench(a.options),
+                             a.json_out, a.options.plot_dir, plot_worlds_bench, format_worlds_bench);
 }
 
 }  // namespace propcam::firmware
