@@ -223,9 +223,16 @@ bool classify_indoor_combined(const cv::Mat& photo_linear, const render::Pinhole
   if (classifier) report.details["svm_indoor_score"] = score = classifier->indoor_score(descriptor);
   bool indoor = sky_says_indoor;
   const auto short_number = [](double v) { return std::to_string(v).substr(0, 5); };
-  if (!sky_says_indoor && sky.fraction >= options.sky_decides_fraction) {
+  const std::string sky_cover = std::to_string(static_cast<int>(std::lround(100 * sky.fraction))) + "%";
+  const bool sky_seen = !sky_says_indoor && sky.fraction >= options.sky_decides_fraction;
+  if (sky_seen && classifier && score >= options.confident_indoor_score) {
+    indoor = true;
+    report.details["method"] = "svm_over_sky";
+    report.why = "\"sky\" covers " + sky_cover + " of the frame, but SVM: indoor (score " + short_number(score) +
+                 " >= " + short_number(options.confident_indoor_score) + "): a lit wall or ceiling";
+  } else if (sky_seen) {
     report.details["method"] = "sky";
-    report.why = "sky covers " + std::to_string(static_cast<int>(std::lround(100 * sky.fraction))) + "% of the frame: outdoor";
+    report.why = "sky covers " + sky_cover + " of the frame: outdoor";
   } else if (classifier) {
     // A tie goes indoor, the class that asks nothing of the sky.
     indoor = score >= 0;

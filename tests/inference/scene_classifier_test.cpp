@@ -89,5 +89,29 @@ TEST(SceneClassifier, CombinedStageSaysTheClassifierDecided) {
   EXPECT_TRUE(report.details.contains("knn_indoor_share")) << "k-NN is reported beside it";
 }
 
+// Where the sky rule sees sky, a confident indoor score still overrules it
+// (a lit wall or ceiling taken for sky); a real outdoor view's score stays
+// under the default threshold, so the sky decides it.
+TEST(SceneClassifier, AConfidentIndoorScoreOverrulesTheSkyAndARealSkyStaysOutdoor) {
+  if (!std::filesystem::exists(std::string(kBlenderPanoramaDir) + "/sunset.exr"))
+    GTEST_SKIP() << "install blender-data (scripts/setup.sh does)";
+  const auto views = panorama_views(blender_panorama("sunset"), 1, {5.0}, 60.0, 320, 240);
+  ASSERT_EQ(views.size(), 1u);
+  // panorama_views' first view: yaw 0, the pitch asked for.
+  const render::PinholeCamera camera = render::view_camera(render::view_spec(0.0, 5.0, 60.0, 320, 240));
+  StageReport by_default;
+  EXPECT_FALSE(classify_indoor_combined(views[0].photo_linear, camera, references(), by_default, nullptr, {}, &committed()));
+  ASSERT_EQ(by_default.details["method"], "sky") << by_default.details.dump();
+  const double score = by_default.details["svm_indoor_score"].get<double>();
+  EXPECT_LT(score, CombinedSceneClassOptions{}.confident_indoor_score);
+
+  CombinedSceneClassOptions trusting;
+  trusting.confident_indoor_score = score - 0.01;
+  StageReport overruled;
+  EXPECT_TRUE(classify_indoor_combined(views[0].photo_linear, camera, references(), overruled, nullptr, trusting, &committed()));
+  EXPECT_EQ(overruled.details["method"], "svm_over_sky");
+  EXPECT_NE(overruled.why.find("SVM: indoor"), std::string::npos) << overruled.why;
+}
+
 }  // namespace
 }  // namespace propcam::inference

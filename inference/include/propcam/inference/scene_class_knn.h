@@ -79,16 +79,21 @@ KnnSceneClass classify_indoor_knn(const std::vector<float>& descriptor, const Sc
 KnnSceneClass classify_indoor_knn(const cv::Mat& photo_linear, const DepthDatabase& db, int k = 7);
 
 // The sky rule with a learned classifier: a photo whose sky the rule sees
-// and that covers at least `sky_decides_fraction` of the frame is outdoor;
-// any other photo is decided by `classifier` (scene_classifier.h) when
-// given, else by k-NN. Fills the "scene_class" report (method "sky", "svm"
-// or "knn"; the sky fraction, the classifier's score, the k-NN indoor share
-// and real neighbours).
+// and that covers at least `sky_decides_fraction` of the frame is outdoor
+// unless `classifier` (scene_classifier.h) is confident it is indoor; any
+// other photo is decided by the classifier when given, else by k-NN. Fills
+// the "scene_class" report (method "sky", "svm_over_sky", "svm" or "knn";
+// the sky fraction, the classifier's score, the k-NN indoor share and real
+// neighbours).
 struct CombinedSceneClassOptions {
   // Sky under 5% of the frame may be a bright wall: the classifier then
   // decides (docs/scene_class.md: best on our own world, within 1% of the
   // best on the real and Blender-rendered ones).
   double sky_decides_fraction = 0.05;
+  // A larger "sky" is still a bright wall or ceiling when the classifier's
+  // indoor score is at least this (docs/scene_class.md: rooms whose lit wall
+  // the rule took for sky scored +0.20 to +0.57, outdoor views at most +0.07).
+  double confident_indoor_score = 0.15;
   KnnOptions knn;
   SkyOptions sky;
 };
