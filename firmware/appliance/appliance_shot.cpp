@@ -490,7 +490,7 @@ std::shared_ptr<const RenderSnapshot> CompositeRender::snapshot(bool final_layer
       const render::PhotoImaging& imaging = analysis_->scene.imaging;
       s->full_size_coverage = full_size_prop_coverage(*world_.scene, world_.camera, s->layers.coverage,
                                                       analysis_->full_photo_linear.size(),
-                                                      imaging.blur_measured ? imaging.blur_sigma_px : 0.0);
+                                                      imaging.blur_measured ? imaging.blur_sigma_at(s->prop_distance_m) : 0.0);
     }
   }
   return s;
@@ -542,9 +542,12 @@ cv::Mat adjusted_composite(const Analysis& analysis, const RenderSnapshot& rende
   }
   // The photo's blur and noise on the prop, once the render has ended (the
   // screen's progressive snapshots stay raw).
-  if (!render.layers.coverage.empty())
+  if (!render.layers.coverage.empty()) {
+    render::CameraMatchOptions match;
+    match.prop_depth_m = render.prop_distance_m;
     out = render::match_camera(analysis.scene_photo * scene_scale, out, render.layers.coverage, analysis.scene.imaging,
-                               {}, analysis.scene.gamma);
+                               match, analysis.scene.gamma);
+  }
   if (adjustment.aperture_m > 0 && !render.depth.empty()) {
     render::DepthOfField dof;
     dof.aperture_m = adjustment.aperture_m;

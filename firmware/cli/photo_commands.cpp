@@ -358,20 +358,22 @@ CompositeOptions composite_options(const CompositeArgs& a, const firmware::JobBu
 // depth of field. Returns the depth of field's JSON (null without).
 json finish_composite(const CompositeArgs& a, const cv::Mat& scene_photo, const inference::SceneModel& scene,
                       const CompositeResult& result, const CompositeOptions& options, cv::Mat& image) {
+  const double prop_depth_m = scene.camera().world_to_camera(result.placed.base_world.cast<double>()).z();
   if (!a.light_scale.empty()) {
     const render::LightScales scales = parse_light_scales(a.light_scale, static_cast<int>(result.layers.change.size()));
     image = a.relight_scene ? render::relight_scene(scene_photo, result.layers, result.scene_layers, scales)
                             : render::relight_prop(scene_photo, result.layers, scales);
-    if (options.match_camera)
-      image = render::match_camera(scene_photo, image, result.render.coverage, scene.imaging, options.camera_match,
-                                   scene.gamma);
+    if (options.match_camera) {
+      render::CameraMatchOptions match = options.camera_match;
+      if (!(match.prop_depth_m > 0)) match.prop_depth_m = prop_depth_m;
+      image = render::match_camera(scene_photo, image, result.render.coverage, scene.imaging, match, scene.gamma);
+    }
   }
   if (!(a.aperture > 0)) return nullptr;
   render::DepthOfField dof;
   dof.aperture_m = a.aperture;
   // Focus on the prop unless told otherwise.
-  dof.focus_distance_m =
-      a.focus > 0 ? a.focus : scene.camera().world_to_camera(result.placed.base_world.cast<double>()).z();
+  dof.focus_distance_m = a.focus > 0 ? a.focus : prop_depth_m;
   image = render::apply_depth_of_field(image, result.depth, scene.fx, dof);
   return {{"aperture_m", dof.aperture_m}, {"focus_m", dof.focus_distance_m}};
 }

@@ -143,9 +143,12 @@ CompositeResult composite_prop(const cv::Mat& photo_linear, const inference::Sce
   result.samples_per_pixel = result.passes.empty() ? 0 : result.passes.back().max_samples;
   result.render = options.denoise ? session.denoised(&result.denoise) : session.differential();
   result.composite_linear = render::composite_differential(photo_linear, result.render);
-  if (options.match_camera)
+  if (options.match_camera) {
+    render::CameraMatchOptions match = options.camera_match;
+    if (!(match.prop_depth_m > 0)) match.prop_depth_m = camera.world_to_camera(w.placed.base_world.cast<double>()).z();
     result.composite_linear = render::match_camera(photo_linear, result.composite_linear, result.render.coverage,
-                                                   scene.imaging, options.camera_match, scene.gamma, &result.camera_match);
+                                                   scene.imaging, match, scene.gamma, &result.camera_match);
+  }
   if (options.full_size.width > photo_linear.cols)
     result.full_size_coverage = full_size_prop_coverage(world, camera, result.render.coverage, options.full_size,
                                                         result.camera_match.blur_sigma_px);

@@ -228,7 +228,16 @@ StageReport imaging_report(const render::PhotoImaging& m) {
                   m.blur_read_through_noise ? " (read through the noise)" : "");
   if (m.noise_measured) std::snprintf(noise, sizeof noise, "%.1f levels (median)", m.noise.median_8bit());
   r.why = std::string("edge blur ") + blur + ", noise " + noise;
+  const render::Defocus& d = m.defocus;
+  if (d.found) {
+    char defocus[96];
+    std::snprintf(defocus, sizeof defocus, "; defocus: sigma %.2f px at %.1f m to %.2f px at %.1f m",
+                  d.sigma_at(1.0 / d.max_dioptres), 1.0 / d.max_dioptres, d.sigma_at(1.0 / d.min_dioptres),
+                  1.0 / d.min_dioptres);
+    r.why += defocus;
+  }
   r.details = {{"blur_sigma_px", m.blur_sigma_px}, {"blur_edges", m.blur_edges}, {"blur_read_through_noise", m.blur_read_through_noise},
+               {"defocus_found", d.found}, {"defocus_bands", d.bands.size()},
                {"noise_median_8bit", m.noise.median_8bit()}, {"noise_blocks", m.noise_blocks}};
   return r;
 }
@@ -254,7 +263,7 @@ SceneModel complete_scene(const cv::Mat& photo_linear, const GeometryEstimate& g
   const render::PinholeCamera& camera = g.pinhole;
 
   if (options.on_stage) options.on_stage("imaging");
-  scene.imaging = render::estimate_photo_imaging(photo);
+  scene.imaging = render::estimate_photo_imaging(photo, scene.depth);
   scene.reports.push_back(imaging_report(scene.imaging));
 
   if (options.on_stage) options.on_stage("albedo");

@@ -60,13 +60,37 @@ LightSource::Type light_type_from_string(const std::string& s) {
 // Bounds on the imaging a scene file may carry: an edge blur and a noise
 // level beyond these are not a camera's (the estimators stop at 8 px).
 constexpr double kMaxImagingBlurPx = 8.0, kMaxImagingNoise = 0.5;
+// A surface 1 mm away; a circle of confusion growing 1e4 px per dioptre.
+constexpr double kMaxDefocusDioptres = 1000.0, kMaxDefocusPxPerDioptre = 1.0e4;
+
+json defocus_json(const render::Defocus& d) {
+  json bands = json::array();
+  for (const render::DepthBandBlur& b : d.bands)
+    bands.push_back({{"dioptres", b.dioptres}, {"sigma_px", b.sigma_px}, {"edges", b.edges}});
+  return {{"found", d.found}, {"base_sigma_px", d.base_sigma_px}, {"focus_dioptres", d.focus_dioptres},
+          {"sigma_px_per_dioptre", d.sigma_px_per_dioptre}, {"min_dioptres", d.min_dioptres},
+          {"max_dioptres", d.max_dioptres}, {"bands", bands}};
+}
+
+render::Defocus defocus_from_json(const json& j) {
+  render::Defocus d;
+  d.found = j.value("found", false);
+  d.base_sigma_px = j.value("base_sigma_px", 0.0);
+  d.focus_dioptres = j.value("focus_dioptres", 0.0);
+  d.sigma_px_per_dioptre = j.value("sigma_px_per_dioptre", 0.0);
+  d.min_dioptres = j.value("min_dioptres", 0.0);
+  d.max_dioptres = j.value("max_dioptres", 0.0);
+  for (const json& b : j.value("bands", json::array()))
+    d.bands.push_back({b.value("dioptres", 0.0), b.value("sigma_px", 0.0), json_int_or(b, "edges", 0)});
+  return d;
+}
 
 json imaging_json(const render::PhotoImaging& m) {
   json sigma = json::array();
   for (const auto& bin : m.noise.sigma) sigma.push_back({bin[0], bin[1], bin[2]});
   return {{"blur_measured", m.blur_measured}, {"blur_sigma_px", m.blur_sigma_px}, {"blur_edges", m.blur_edges},
-          {"blur_read_through_noise", m.blur_read_through_noise}, {"noise_measured", m.noise_measured},
-          {"noise_blocks", m.noise_blocks}, {"noise_sigma", sigma}};
+          {"blur_read_through_noise", m.blur_read_through_noise}, {"defocus", defocus_json(m.defocus)},
+          {"noise_measured", m.noise_measured}, {"noise_blocks", m.noise_blocks}, {"noise_sigma", sigma}};
 }
 
 render::PhotoImaging imaging_from_json(const json& j) {
@@ -75,6 +99,7 @@ render::PhotoImaging imaging_from_json(const json& j) {
   m.blur_sigma_px = j.value("blur_sigma_px", 0.0);
   m.blur_edges = json_int_or(j, "blur_edges", 0);
   m.blur_read_through_noise = j.value("blur_read_through_noise", false);
+  if (j.contains("defocus")) m.defocus = defocus_from_json(j.at("defocus"));
   m.noise_measured = j.value("noise_measured", false);
   m.noise_blocks = json_int_or(j, "noise_blocks", 0);
   const json sigma = j.value("noise_sigma", json::array());
@@ -198,6 +223,20 @@ void SceneModel::validate() const {
   for (const auto& bin : imaging.noise.sigma)
     for (float v : bin)
       if (!(v >= 0 && v <= kMaxImagingNoise)) throw std::runtime_error("scene model: the imaging's noise must lie in [0, 0.5]");
+  const render::Defocus& d = imaging.defocus;
+  if (!(d.base_sigma_px >= 0 && d.base_sigma_px <= kMaxImagingBlurPx))
+    throw std::runtime_error("scene model: the defocus's base blur must lie in [0, 8] px");
+  const bool dioptres_ok = d.focus_dioptres >= 0 && d.focus_dioptres <= kMaxDefocusDioptres && d.min_dioptres >= 0 &&
+                           d.max_dioptres >= d.min_dioptres && d.max_dioptres <= kMaxDefocusDioptres;
+  if (!dioptres_ok) throw std::runtime_error("scene model: the defocus's dioptres must lie in [0, 1000] 1/m, min <= max");
+  if (!(d.sigma_px_per_dioptre >= 0 && d.sigma_px_per_dioptre <= kMaxDefocusPxPerDioptre))
+    throw std::runtime_error("scene model: the defocus's growth must lie in [0, 1e4] px m");
+  if (d.bands.size() > static_cast<size_t>(render::kDefocusBands))
+    throw std::runtime_error("scene model: the defocus has more bands than " + std::to_string(render::kDefocusBands));
+  for (const render::DepthBandBlur& b : d.bands)
+    if (!(b.dioptres >= 0 && b.dioptres <= kMaxDefocusDioptres && b.sigma_px >= 0 && b.sigma_px <= kMaxImagingBlurPx &&
+          b.edges >= 0))
+      throw std::runtime_error("scene model: a defocus band out of range");
   if (hidden_facades.size() > kMaxHiddenFacades) throw std::runtime_error("scene model: too many hidden facades");
   for (const auto& f : hidden_facades) f.validate();
   enclosure.validate();

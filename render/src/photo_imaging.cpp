@@ -4,12 +4,15 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
+#include <map>
 #include <mutex>
 #include <numbers>
 #include <stdexcept>
 
 #include "luminance.h"
 #include "propcam/capture/image_file.h"
+#include "propcam/render/depth_mesh.h"
 
 namespace propcam::render {
 namespace {
@@ -286,7 +289,7 @@ AlongEdge edge_pixel_along(const cv::Mat& y, const cv::Mat& edges, int r, int c,
 // along it (which averages noise away and leaves the profile across the
 // edge as it is).
 std::vector<double> edge_blurs(const cv::Mat& y, const cv::Mat& edges, const cv::Mat& mask, double sigma0,
-                               int along_px = 0) {
+                               int along_px = 0, std::vector<cv::Point>* at = nullptr) {
   const ReblurTable& table = reblur_table(sigma0);
   const int ksize = gaussian_ksize(sigma0);
   cv::Mat reblurred;
@@ -323,6 +326,7 @@ std::vector<double> edge_blurs(const cv::Mat& y, const cv::Mat& edges, const cv:
       }
       if (!(g1_sum > 0)) continue;
       sigmas.push_back(table.sigma_for(g_sum / g1_sum));
+      if (at) at->push_back({c, r});
     }
   return sigmas;
 }
@@ -457,27 +461,68 @@ NoiseLevelFunction estimate_noise_level(const cv::Mat& display, const cv::Mat& m
 
 namespace {
 
-double edge_blur_of(const cv::Mat& y, const cv::Mat& encoded, const cv::Mat& mask, int* edges_used, int min_edges,
-                    int along_px = 0) {
-  // Edges are found on the display-encoded luminance, where a step's
-  // strength reads as a person sees it; they are measured on linear light.
+// Edges are found on the display-encoded luminance, where a step's
+// strength reads as a person sees it; they are measured on linear light.
+cv::Mat edges_of(const cv::Mat& encoded) {
   cv::Mat edges;
   cv::Canny(encoded, edges, 20, 50, 3, true);
-  std::vector<double> sigmas = edge_blurs(y, edges, mask, kReblurSigmaPx, along_px);
-  if (static_cast<int>(sigmas.size()) < std::max(1, min_edges)) {
-    if (edges_used) *edges_used = 0;
-    return 0.0;
+  return edges;
+}
+
+struct BlurReading {
+  double sigma_px = 0.0;
+  int edges = 0;  // 0: too few to tell
+  bool through_noise = false;
+};
+
+constexpr uint8_t kNoBand = 255;
+
+// edge_blur_of for every band of `band` (CV_8U: a band's index, kNoBand
+// elsewhere) at once: one pass over the edges for all bands, and one more
+// per re-blur width the wide bands ask for. A band too few edges tell
+// reads 0 edges.
+std::vector<BlurReading> band_edge_blurs(const cv::Mat& y, const cv::Mat& edges, const cv::Mat& band, int bands,
+                                         int along_px, int min_edges = kMinBlurEdges) {
+  min_edges = std::max(1, min_edges);
+  const auto by_band = [&](const std::vector<double>& sigmas, const std::vector<cv::Point>& at) {
+    std::vector<std::vector<double>> per(bands);
+    for (size_t i = 0; i < sigmas.size(); ++i) per[band.at<uint8_t>(at[i])].push_back(sigmas[i]);
+    return per;
+  };
+  std::vector<cv::Point> at;
+  const std::vector<double> first = edge_blurs(y, edges, band != kNoBand, kReblurSigmaPx, along_px, &at);
+  const std::vector<std::vector<double>> per = by_band(first, at);
+  std::vector<BlurReading> out(bands);
+  std::map<double, std::vector<int>> rereads;  // re-blur width: the bands that ask for it
+  for (int b = 0; b < bands; ++b) {
+    if (static_cast<int>(per[b].size()) < min_edges) continue;
+    out[b] = {quantile(per[b], kEdgeQuantile), static_cast<int>(per[b].size()), along_px > 0};
+    // A re-blur of about the edge's own width reads wide edges best.
+    if (out[b].sigma_px > 1.5 * kReblurSigmaPx)
+      rereads[std::round(std::min(out[b].sigma_px, 4.0) * 4.0) / 4.0].push_back(b);
   }
-  double sigma = quantile(sigmas, kEdgeQuantile);
-  // A re-blur of about the edge's own width reads wide edges best.
-  if (sigma > 1.5 * kReblurSigmaPx) {
-    const double sigma0 = std::round(std::min(sigma, 4.0) * 4.0) / 4.0;
-    std::vector<double> again = edge_blurs(y, edges, mask, sigma0, along_px);
-    if (static_cast<int>(again.size()) >= std::max(1, min_edges)) sigmas = std::move(again);
-    sigma = quantile(sigmas, kEdgeQuantile);
+  for (const auto& [sigma0, which] : rereads) {
+    cv::Mat mask = cv::Mat::zeros(band.size(), CV_8U);
+    for (const int b : which) mask.setTo(255, band == b);
+    at.clear();
+    const std::vector<double> again = edge_blurs(y, edges, mask, sigma0, along_px, &at);
+    const std::vector<std::vector<double>> per_again = by_band(again, at);
+    for (const int b : which)
+      if (static_cast<int>(per_again[b].size()) >= min_edges)
+        out[b] = {quantile(per_again[b], kEdgeQuantile), static_cast<int>(per_again[b].size()), along_px > 0};
   }
-  if (edges_used) *edges_used = static_cast<int>(sigmas.size());
-  return sigma;
+  return out;
+}
+
+// The blur of the edges within `mask` (empty: all): their lower quartile.
+// `edges`: edges_of the encoded luminance.
+double edge_blur_of(const cv::Mat& y, const cv::Mat& edges, const cv::Mat& mask, int* edges_used, int min_edges,
+                    int along_px = 0) {
+  cv::Mat band(y.size(), CV_8U, cv::Scalar(0));
+  if (!mask.empty()) band.setTo(kNoBand, mask == 0);
+  const BlurReading reading = band_edge_blurs(y, edges, band, 1, along_px, min_edges).front();
+  if (edges_used) *edges_used = reading.edges;
+  return reading.sigma_px;
 }
 
 // Noise adds to an edge's gradient more than to its re-blurred gradient,
@@ -493,44 +538,214 @@ constexpr double kNoisyBlurFloor8bit = 0.9;  // levels of noise (the function's 
 constexpr double kEdgeFindingBlurPx = 1.0;
 constexpr int kAlongEdgePx = 3;
 
-// False when too few edges are found so: then the photo is read directly.
-bool measure_blur_through_noise(const cv::Mat& luminance, PhotoImaging& imaging) {
+// A photo's edges, found once for every reading: on its own encoded
+// luminance and, on a noisy photo, on that luminance smoothed by
+// kEdgeFindingBlurPx.
+struct EdgeFinding {
+  const PhotoPlanes& planes;
+  cv::Mat edges;
+  cv::Mat smoothed_edges;  // empty for a clean photo
+};
+
+EdgeFinding edge_finding(const PhotoPlanes& planes, bool noisy) {
+  EdgeFinding f{planes, edges_of(planes.encoded_luminance), {}};
+  if (!noisy) return f;
   const int ksize = gaussian_ksize(kEdgeFindingBlurPx);
   cv::Mat smoothed;
-  cv::GaussianBlur(luminance, smoothed, {ksize, ksize}, kEdgeFindingBlurPx, kEdgeFindingBlurPx, cv::BORDER_REFLECT);
-  int edges = 0;
-  const double sigma =
-      edge_blur_of(luminance, encoded_luminance_of(smoothed), {}, &edges, kMinBlurEdges, kAlongEdgePx);
-  if (edges == 0) return false;
-  imaging.blur_measured = true;
-  imaging.blur_sigma_px = sigma;
-  imaging.blur_edges = edges;
-  imaging.blur_read_through_noise = true;
-  return true;
+  cv::GaussianBlur(planes.luminance, smoothed, {ksize, ksize}, kEdgeFindingBlurPx, kEdgeFindingBlurPx,
+                   cv::BORDER_REFLECT);
+  f.smoothed_edges = edges_of(encoded_luminance_of(smoothed));
+  return f;
+}
+
+
+// The blur of the edges within `mask` (empty: all). A noisy photo is read
+// through its noise, directly only when too few edges are found so.
+BlurReading read_blur(const EdgeFinding& f, const cv::Mat& mask) {
+  BlurReading r;
+  if (!f.smoothed_edges.empty()) {
+    r.sigma_px = edge_blur_of(f.planes.luminance, f.smoothed_edges, mask, &r.edges, kMinBlurEdges, kAlongEdgePx);
+    r.through_noise = r.edges > 0;
+    if (r.through_noise) return r;
+  }
+  r.sigma_px = edge_blur_of(f.planes.luminance, f.edges, mask, &r.edges, kMinBlurEdges);
+  return r;
+}
+
+// --- defocus ---------------------------------------------------------------
+
+// Inverse depth (1/m) at the photo's size; 0 where there is no surface.
+cv::Mat surface_dioptres(const cv::Mat& depth, cv::Size size) {
+  cv::Mat d;
+  if (depth.size() == size) d = depth;
+  else cv::resize(depth, d, size, 0, 0, cv::INTER_NEAREST);
+  cv::Mat u(size, CV_32F);
+  for (int r = 0; r < size.height; ++r) {
+    const float* z = d.ptr<float>(r);
+    float* out = u.ptr<float>(r);
+    for (int c = 0; c < size.width; ++c)
+      out[c] = std::isfinite(z[c]) && z[c] > 0 && z[c] < kSkyDepthM ? 1.0f / z[c] : 0.0f;
+  }
+  return u;
+}
+
+// Bands of equal pixel count over the surfaces' inverse depth, each read for
+// its blur as the whole photo is (read_blur; the bands too few edges tell
+// are left out).
+std::vector<DepthBandBlur> band_blurs(const EdgeFinding& f, const cv::Mat& dioptres) {
+  std::vector<float> all;
+  all.reserve(dioptres.total());
+  for (int r = 0; r < dioptres.rows; ++r)
+    for (const float* u = dioptres.ptr<float>(r); u != dioptres.ptr<float>(r) + dioptres.cols; ++u)
+      if (*u > 0) all.push_back(*u);
+  std::vector<DepthBandBlur> bands;
+  if (all.size() < static_cast<size_t>(kDefocusBands * kMinBlurEdges)) return bands;
+  // The values a sort would put at each band's start and middle, found by
+  // nth_element on a shrinking range (a full sort of a megapixel's depths
+  // costs more than reading the bands' blur).
+  std::array<float, 2 * kDefocusBands> at{};  // at[k]: quantile k / (2 * kDefocusBands)
+  auto from = all.begin();
+  for (int k = 0; k < 2 * kDefocusBands; ++k) {
+    const auto nth = all.begin() + static_cast<std::ptrdiff_t>(std::min(all.size() - 1, k * all.size() / (2 * kDefocusBands)));
+    std::nth_element(from, nth, all.end());
+    at[k] = *nth;
+    from = nth;
+  }
+  // A band's lower limit; pixels of a depth repeated across limits go to
+  // the last band starting there, and the bands before it stay empty.
+  std::array<float, kDefocusBands> lower{};
+  for (int b = 0; b < kDefocusBands; ++b) lower[b] = at[2 * b];
+  cv::Mat band(dioptres.size(), CV_8U, cv::Scalar(kNoBand));
+  for (int r = 0; r < dioptres.rows; ++r) {
+    const float* u = dioptres.ptr<float>(r);
+    uint8_t* out = band.ptr<uint8_t>(r);
+    for (int c = 0; c < dioptres.cols; ++c)
+      if (u[c] > 0) out[c] = static_cast<uint8_t>(std::upper_bound(lower.begin(), lower.end(), u[c]) - lower.begin() - 1);
+  }
+  std::vector<BlurReading> readings;
+  if (!f.smoothed_edges.empty()) {
+    readings = band_edge_blurs(f.planes.luminance, f.smoothed_edges, band, kDefocusBands, kAlongEdgePx);
+    // Bands too few edges are found in through the noise are read directly.
+    cv::Mat unread = band.clone();
+    for (int b = 0; b < kDefocusBands; ++b)
+      if (readings[b].edges > 0) unread.setTo(kNoBand, band == b);
+    const std::vector<BlurReading> direct = band_edge_blurs(f.planes.luminance, f.edges, unread, kDefocusBands, 0);
+    for (int b = 0; b < kDefocusBands; ++b)
+      if (readings[b].edges == 0) readings[b] = direct[b];
+  } else {
+    readings = band_edge_blurs(f.planes.luminance, f.edges, band, kDefocusBands, 0);
+  }
+  for (int b = 0; b < kDefocusBands; ++b)
+    if (readings[b].edges > 0) bands.push_back({at[2 * b + 1], readings[b].sigma_px, readings[b].edges});
+  return bands;
+}
+
+// Grid steps over the focus's inverse depth, from 0 to 1.5x the nearest band's.
+constexpr int kFocusSteps = 300;
+
+// sigma_b^2 = base^2 + k^2 (u_b - u_f)^2 by least squares in sigma^2 for each
+// focus on the grid (base^2, k^2 >= 0), the focus whose fit's sigmas are
+// nearest the bands' kept; found when the photo shows defocus (kMinDefocus*).
+Defocus fit_defocus(std::vector<DepthBandBlur> bands) {
+  Defocus d;
+  d.bands = std::move(bands);
+  const std::vector<DepthBandBlur>& b = d.bands;
+  if (static_cast<int>(b.size()) < kMinDefocusBands) return d;
+  const double n = static_cast<double>(b.size());
+  double mean_sigma = 0, lo_sigma = b[0].sigma_px;
+  d.min_dioptres = d.max_dioptres = b[0].dioptres;
+  for (const DepthBandBlur& band : b) {
+    mean_sigma += band.sigma_px / n;
+    lo_sigma = std::min(lo_sigma, band.sigma_px);
+    d.min_dioptres = std::min(d.min_dioptres, band.dioptres);
+    d.max_dioptres = std::max(d.max_dioptres, band.dioptres);
+  }
+  double single_rms = 0;
+  for (const DepthBandBlur& band : b) single_rms += (band.sigma_px - mean_sigma) * (band.sigma_px - mean_sigma) / n;
+  single_rms = std::sqrt(single_rms);
+  double best_rms = std::numeric_limits<double>::infinity();
+  for (int i = 0; i <= kFocusSteps; ++i) {
+    const double uf = 1.5 * d.max_dioptres * i / kFocusSteps;
+    double sx = 0, sy = 0, sxx = 0, sxy = 0;
+    for (const DepthBandBlur& band : b) {
+      const double x = (band.dioptres - uf) * (band.dioptres - uf), y = band.sigma_px * band.sigma_px;
+      sx += x, sy += y, sxx += x * x, sxy += x * y;
+    }
+    const double det = n * sxx - sx * sx;
+    double base2 = sy / n, k2 = 0;
+    if (det > 1e-12) {
+      k2 = (n * sxy - sx * sy) / det;
+      base2 = (sy - k2 * sx) / n;
+    }
+    if (k2 < 0) k2 = 0, base2 = sy / n;
+    if (base2 < 0) base2 = 0, k2 = sxx > 0 ? std::max(0.0, sxy / sxx) : 0.0;
+    double rms = 0;
+    for (const DepthBandBlur& band : b) {
+      const double x = (band.dioptres - uf) * (band.dioptres - uf);
+      const double e = std::sqrt(base2 + k2 * x) - band.sigma_px;
+      rms += e * e / n;
+    }
+    rms = std::sqrt(rms);
+    if (rms < best_rms) {
+      best_rms = rms;
+      d.focus_dioptres = uf;
+      d.base_sigma_px = std::sqrt(base2);
+      d.sigma_px_per_dioptre = std::sqrt(k2);
+    }
+  }
+  double fit_lo = std::numeric_limits<double>::infinity(), fit_hi = 0;
+  for (const DepthBandBlur& band : b) {
+    const double s = d.sigma_at(1.0 / band.dioptres);
+    fit_lo = std::min(fit_lo, s), fit_hi = std::max(fit_hi, s);
+  }
+  // Two bands at least must be the wider ones: one band alone is as likely
+  // a few odd edges (a lamp's glow, a patch of soft texture) as a lens.
+  const double wide = kMinDefocusRatio * std::max(lo_sigma, kMinMatchedBlurPx);
+  const auto wide_bands = std::count_if(b.begin(), b.end(), [&](const DepthBandBlur& band) { return band.sigma_px >= wide; });
+  d.found = fit_hi - fit_lo >= kMinDefocusRangePx && wide_bands >= kMinWideDefocusBands &&
+            best_rms <= kMaxDefocusResidualShare * single_rms;
+  return d;
 }
 
 }  // namespace
+
+double Defocus::sigma_at(double depth_m) const {
+  if (!(std::isfinite(depth_m) && depth_m > 0) || !(max_dioptres > 0)) return base_sigma_px;
+  const double u = std::clamp(1.0 / depth_m, min_dioptres, max_dioptres);
+  const double spread = sigma_px_per_dioptre * (u - focus_dioptres);
+  return std::min(std::sqrt(base_sigma_px * base_sigma_px + spread * spread), kMaxBlurSigmaPx);
+}
+
+double PhotoImaging::blur_sigma_at(double depth_m) const {
+  return defocus.found && std::isfinite(depth_m) && depth_m > 0 ? defocus.sigma_at(depth_m) : blur_sigma_px;
+}
 
 double estimate_edge_blur(const cv::Mat& linear, const cv::Mat& mask, int* edges_used, int min_edges) {
   if (linear.type() != CV_32F && linear.type() != CV_32FC3)
     throw std::invalid_argument("estimate_edge_blur: need CV_32F or CV_32FC3");
   const cv::Mat y = luminance_as_given(linear);
-  return edge_blur_of(y, encoded_luminance_of(y), mask, edges_used, min_edges);
+  return edge_blur_of(y, edges_of(encoded_luminance_of(y)), mask, edges_used, min_edges);
 }
 
-PhotoImaging estimate_photo_imaging(const cv::Mat& photo_srgb_linear) {
+PhotoImaging estimate_photo_imaging(const cv::Mat& photo_srgb_linear, const cv::Mat& depth) {
   const auto start = Clock::now();
   if (photo_srgb_linear.type() != CV_32FC3 || photo_srgb_linear.empty())
     throw std::invalid_argument("estimate_photo_imaging: need a CV_32FC3 linear photo");
+  if (!depth.empty() && depth.type() != CV_32F)
+    throw std::invalid_argument("estimate_photo_imaging: the depth must be CV_32F metres");
   PhotoImaging out;
   const PhotoPlanes planes = photo_planes(photo_srgb_linear);
   out.noise = estimate_noise_level(planes.display, {}, &out.noise_blocks);
   out.noise_measured = out.noise_blocks > 0;
   const bool noisy = out.noise_measured && out.noise.median_8bit() >= kNoisyBlurFloor8bit;
-  if (!noisy || !measure_blur_through_noise(planes.luminance, out)) {
-    out.blur_sigma_px = edge_blur_of(planes.luminance, planes.encoded_luminance, {}, &out.blur_edges, kMinBlurEdges);
-    out.blur_measured = out.blur_edges > 0;
-  }
+  const EdgeFinding finding = edge_finding(planes, noisy);
+  const BlurReading blur = read_blur(finding, {});
+  out.blur_measured = blur.edges > 0;
+  out.blur_sigma_px = blur.sigma_px;
+  out.blur_edges = blur.edges;
+  out.blur_read_through_noise = blur.through_noise;
+  if (out.blur_measured && !depth.empty())
+    out.defocus = fit_defocus(band_blurs(finding, surface_dioptres(depth, photo_srgb_linear.size())));
   out.seconds = std::chrono::duration<double>(Clock::now() - start).count();
   return out;
 }
@@ -646,27 +861,37 @@ cv::Mat match_camera(const cv::Mat& photo_linear, const cv::Mat& composite_linea
   CameraMatchReport local;
   CameraMatchReport& rep = report ? *report : local;
   rep = {};
-  char text[160];
+  char text[200];
   cv::Mat out = composite_linear;
   cv::Mat prop_coverage = coverage.empty() ? cv::Mat::zeros(composite_linear.size(), CV_32F) : coverage;
 
   CameraMatchStep blur{"blur", false, ""};
+  // A photo whose blur grows with depth gives the prop its own depth's.
+  const bool by_depth = imaging.defocus.found && options.prop_depth_m > 0 && std::isfinite(options.prop_depth_m);
+  const double sigma = imaging.blur_sigma_at(options.prop_depth_m);
+  char where[96] = "";
+  if (by_depth)
+    std::snprintf(where, sizeof where, " at the prop's depth %.2f m (defocus, focus at %.2f m)", options.prop_depth_m,
+                  imaging.defocus.focus_dioptres > 0 ? 1.0 / imaging.defocus.focus_dioptres : INFINITY);
   if (!options.blur) {
     blur.why = "turned off";
   } else if (!imaging.blur_measured) {
     blur.why = "too few isolated edges in the photo to measure its blur";
-  } else if (imaging.blur_sigma_px < kMinMatchedBlurPx) {
-    std::snprintf(text, sizeof text, "photo as sharp as the render (edge sigma %.2f px < %.2f)", imaging.blur_sigma_px,
-                  kMinMatchedBlurPx);
+  } else if (sigma < kMinMatchedBlurPx) {
+    std::snprintf(text, sizeof text, "photo as sharp as the render (edge sigma %.2f px < %.2f%s)", sigma,
+                  kMinMatchedBlurPx, where);
     blur.why = text;
   } else {
     cv::Mat blurred_coverage;
-    out = blur_change(photo_linear, out, prop_coverage, imaging.blur_sigma_px, &blurred_coverage);
+    out = blur_change(photo_linear, out, prop_coverage, sigma, &blurred_coverage);
     prop_coverage = blurred_coverage;  // a new buffer: the caller's coverage stays as rendered
-    rep.blur_sigma_px = imaging.blur_sigma_px;
+    rep.blur_sigma_px = sigma;
     blur.applied = true;
-    std::snprintf(text, sizeof text, "photo edges blurred by sigma %.2f px (lower quartile of %d edge pixels)",
-                  imaging.blur_sigma_px, imaging.blur_edges);
+    if (by_depth)
+      std::snprintf(text, sizeof text, "photo edges blurred by sigma %.2f px%s", sigma, where);
+    else
+      std::snprintf(text, sizeof text, "photo edges blurred by sigma %.2f px (lower quartile of %d edge pixels)",
+                    sigma, imaging.blur_edges);
     blur.why = text;
   }
   rep.steps.push_back(blur);

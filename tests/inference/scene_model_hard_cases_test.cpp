@@ -112,6 +112,14 @@ TEST_F(SceneJsonHardCases, ThePhotosImagingRoundTripsAndIsBounded) {
   scene.imaging.blur_read_through_noise = true;
   scene.imaging.noise_measured = true;
   scene.imaging.noise.sigma[3] = {0.01f, 0.02f, 0.03f};
+  render::Defocus& defocus = scene.imaging.defocus;
+  defocus.found = true;
+  defocus.base_sigma_px = 0.4;
+  defocus.focus_dioptres = 0.5;
+  defocus.sigma_px_per_dioptre = 4.0;
+  defocus.min_dioptres = 0.2;
+  defocus.max_dioptres = 0.8;
+  defocus.bands = {{0.2, 1.3, 120}, {0.5, 0.4, 300}, {0.8, 1.3, 90}};
   const fs::path saved = dir_ / "saved";
   save_scene(scene, saved.string());
   const SceneModel back = load_scene(saved.string());
@@ -119,6 +127,11 @@ TEST_F(SceneJsonHardCases, ThePhotosImagingRoundTripsAndIsBounded) {
   EXPECT_DOUBLE_EQ(back.imaging.blur_sigma_px, 1.25);
   EXPECT_TRUE(back.imaging.blur_read_through_noise);
   EXPECT_FLOAT_EQ(back.imaging.noise.sigma[3][2], 0.03f);
+  EXPECT_TRUE(back.imaging.defocus.found);
+  EXPECT_DOUBLE_EQ(back.imaging.defocus.sigma_at(1.25), defocus.sigma_at(1.25));
+  ASSERT_EQ(back.imaging.defocus.bands.size(), 3u);
+  EXPECT_EQ(back.imaging.defocus.bands[2].edges, 90);
+  EXPECT_DOUBLE_EQ(back.imaging.blur_sigma_at(5.0), defocus.sigma_at(5.0)) << "a depth's blur is the defocus's";
   const std::string base = scene_json();
   const auto with_imaging = [&](const std::string& imaging) {
     return base.substr(0, base.size() - 1) + R"(, "imaging": )" + imaging + "}";
@@ -126,6 +139,13 @@ TEST_F(SceneJsonHardCases, ThePhotosImagingRoundTripsAndIsBounded) {
   EXPECT_NE(error_of(with_imaging(R"({"blur_sigma_px": 1e300})")).find("blur"), std::string::npos);
   EXPECT_NE(error_of(with_imaging(R"({"blur_sigma_px": -1})")).find("blur"), std::string::npos);
   EXPECT_NE(error_of(with_imaging(R"({"noise_sigma": [[0, 0, 0]]})")).find("bins"), std::string::npos);
+  EXPECT_NE(error_of(with_imaging(R"({"defocus": {"found": true, "focus_dioptres": -1}})")).find("defocus"),
+            std::string::npos);
+  EXPECT_NE(error_of(with_imaging(R"({"defocus": {"min_dioptres": 2, "max_dioptres": 1}})")).find("min <= max"),
+            std::string::npos);
+  EXPECT_NE(error_of(with_imaging(R"({"defocus": {"bands": [{"dioptres": 0.5, "sigma_px": 99, "edges": 40}]}})"))
+                .find("band"),
+            std::string::npos);
   EXPECT_NE(error_of(with_imaging(R"({"noise_sigma": [[9,9,9],[0,0,0],[0,0,0],[0,0,0],[0,0,0],[0,0,0],[0,0,0],[0,0,0]]})"))
                 .find("noise"),
             std::string::npos);

@@ -4,11 +4,14 @@
 
 #include <opencv2/imgproc.hpp>
 #include <cmath>
+#include <limits>
 #include <random>
 #include <utility>
 #include <vector>
 
 #include "propcam/capture/image_file.h"
+#include "propcam/render/depth_mesh.h"
+#include "propcam/render/depth_of_field.h"
 #include "propcam/render/photo_imaging.h"
 
 namespace propcam::render {
@@ -232,6 +235,130 @@ TEST(PhotoImaging, APropPastedIntoABlurredPhotoGetsThePhotosEdgeWidth) {
   EXPECT_LT(before, kMinMatchedBlurPx) << "the pasted prop is sharp";
   EXPECT_GT(edges, 30);
   EXPECT_NEAR(after, sigma, 0.2 * sigma);
+}
+
+// A ground plane receding from 1.1 m (bottom row) to 10 m (top row) with
+// flat shapes standing on it, each at the depth of its lowest row, and the
+// depth that goes with it: a photo whose defocus grows away from a focus.
+constexpr int kDofW = 480, kDofH = 360, kDofSuper = 4;
+constexpr double kDofFx = 450.0;
+
+double ramp_depth(double row_fraction) { return 1.0 / (0.1 + 0.9 * row_fraction); }
+
+cv::Mat shapes_on_a_ground(uint32_t seed, cv::Mat& depth) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0, 1);
+  cv::Mat big(kDofH * kDofSuper, kDofW * kDofSuper, CV_32FC3), big_depth(big.size(), CV_32F);
+  for (int y = 0; y < big.rows; ++y)
+    for (int x = 0; x < big.cols; ++x) {
+      const float v = 0.15f + 0.2f * static_cast<float>(x) / static_cast<float>(big.cols);
+      big.at<cv::Vec3f>(y, x) = {v, v * 0.9f, v * 0.8f};
+      big_depth.at<float>(y, x) = static_cast<float>(ramp_depth(static_cast<double>(y) / big.rows));
+    }
+  for (int i = 0; i < 60; ++i) {
+    const cv::Scalar colour(0.03 + 0.8 * u(rng), 0.03 + 0.8 * u(rng), 0.03 + 0.8 * u(rng));
+    const cv::Point centre(static_cast<int>(u(rng) * big.cols), static_cast<int>(u(rng) * big.rows));
+    const int radius = static_cast<int>((6 + 20 * u(rng)) * kDofSuper);
+    const int bottom = std::min(big.rows - 1, centre.y + radius);
+    cv::Mat shape = cv::Mat::zeros(big.size(), CV_8U);
+    if (i % 2) {
+      cv::circle(shape, centre, radius, 255, cv::FILLED);
+    } else {
+      const cv::RotatedRect box(centre, cv::Size2f(static_cast<float>(radius * 2), static_cast<float>(radius)),
+                                static_cast<float>(180 * u(rng)));
+      cv::Point2f corners[4];
+      box.points(corners);
+      cv::fillConvexPoly(shape, std::vector<cv::Point>(corners, corners + 4), 255);
+    }
+    big.setTo(colour, shape);
+    big_depth.setTo(ramp_depth(static_cast<double>(bottom) / big.rows), shape);
+  }
+  cv::Mat photo;
+  cv::resize(big, photo, {kDofW, kDofH}, 0, 0, cv::INTER_AREA);
+  cv::resize(big_depth, depth, {kDofW, kDofH}, 0, 0, cv::INTER_NEAREST);
+  return photo;
+}
+
+// A 30 mm pupil focused at 2 m: circles of confusion from 0.3 px near the
+// focus to 4-5 px at the ends of the ground.
+cv::Mat defocused(const cv::Mat& photo, const cv::Mat& depth) {
+  DepthOfField dof;
+  dof.aperture_m = 0.03;
+  dof.focus_distance_m = 2.0;
+  return apply_depth_of_field(photo, depth, kDofFx, dof);
+}
+
+// A sharp, box-pixel prop (a bright bar) pasted at a row of the ground, and
+// the photo's edges at the prop's depth, away from it: after the camera
+// match with the prop's depth, the prop's edges are as wide as the photo's
+// there (within 20%), near and far from the focus.
+TEST(PhotoImaging, APropInADefocusedPhotoGetsItsOwnDepthsBlur) {
+  cv::Mat depth;
+  const cv::Mat photo = defocused(shapes_on_a_ground(5, depth), depth);
+  const PhotoImaging imaging = estimate_photo_imaging(photo, depth);
+  ASSERT_TRUE(imaging.defocus.found) << imaging.defocus.bands.size() << " bands";
+  EXPECT_NEAR(imaging.defocus.focus_dioptres, 0.5, 0.15) << "focused at 2 m";
+  for (const int row : {30, 320}) {
+    const double prop_depth = ramp_depth((row + 0.5) / kDofH);
+    const cv::Rect bar(kDofW / 2 - 40, row - 10, 80, 20);
+    cv::Mat coverage = cv::Mat::zeros(photo.size(), CV_32F);
+    coverage(bar).setTo(1.0f);
+    cv::Mat composite = photo.clone();
+    composite(bar).setTo(cv::Scalar(0.9, 0.85, 0.8));
+    CameraMatchOptions options;
+    options.prop_depth_m = prop_depth;
+    CameraMatchReport report;
+    const cv::Mat matched = match_camera(photo, composite, coverage, imaging, options, 1.0, &report);
+    ASSERT_TRUE(report.steps.at(0).applied) << report.steps[0].why;
+    EXPECT_NE(report.steps[0].why.find("prop's depth"), std::string::npos) << report.steps[0].why;
+    cv::Mat outline = cv::Mat::zeros(photo.size(), CV_8U);
+    cv::rectangle(outline, bar, 255, 5);
+    // The photo's edges at the prop's depth (within 0.06 dioptres), away from the bar.
+    cv::Mat same_depth = cv::Mat::zeros(photo.size(), CV_8U);
+    for (int r = 0; r < kDofH; ++r)
+      for (int c = 0; c < kDofW; ++c)
+        if (std::abs(1.0 / depth.at<float>(r, c) - 1.0 / prop_depth) < 0.06) same_depth.at<uint8_t>(r, c) = 255;
+    cv::Mat grown_bar = cv::Mat::zeros(photo.size(), CV_8U);
+    cv::rectangle(grown_bar, bar, 255, 15);
+    grown_bar(bar).setTo(255);
+    same_depth.setTo(0, grown_bar);
+    int prop_edges = 0, photo_edges = 0;
+    const double prop_blur = estimate_edge_blur(matched, outline, &prop_edges, 20);
+    const double photo_blur = estimate_edge_blur(photo, same_depth, &photo_edges, 20);
+    ASSERT_GT(prop_edges, 0);
+    ASSERT_GT(photo_edges, 0);
+    EXPECT_NEAR(prop_blur, photo_blur, 0.2 * photo_blur) << "at " << prop_depth << " m (row " << row << ")";
+    EXPECT_NEAR(report.blur_sigma_px, imaging.blur_sigma_at(prop_depth), 1e-12);
+  }
+}
+
+// One blur everywhere: no defocus, and every depth takes the photo's blur.
+TEST(PhotoImaging, APhotoBlurredAlikeAtEveryDepthShowsNoDefocus) {
+  cv::Mat depth;
+  const cv::Mat photo = blurred(shapes_on_a_ground(6, depth), 1.2);
+  const PhotoImaging imaging = estimate_photo_imaging(photo, depth);
+  EXPECT_GE(static_cast<int>(imaging.defocus.bands.size()), kMinDefocusBands) << "the bands were read";
+  EXPECT_FALSE(imaging.defocus.found);
+  for (const double z : {1.2, 2.0, 8.0}) EXPECT_EQ(imaging.blur_sigma_at(z), imaging.blur_sigma_px);
+}
+
+// Depth that gives nothing to band: none, all sky, non-finite, another
+// size, another type.
+TEST(PhotoImaging, DepthWithoutSurfacesLooksForNoDefocus) {
+  cv::Mat depth;
+  const cv::Mat photo = defocused(shapes_on_a_ground(7, depth), depth);
+  EXPECT_TRUE(estimate_photo_imaging(photo).defocus.bands.empty()) << "no depth, no bands";
+  for (const float z : {kSkyDepthM, 0.0f, -1.0f, std::numeric_limits<float>::quiet_NaN(),
+                        std::numeric_limits<float>::infinity()}) {
+    const PhotoImaging imaging = estimate_photo_imaging(photo, cv::Mat(photo.size(), CV_32F, cv::Scalar(z)));
+    EXPECT_FALSE(imaging.defocus.found) << z;
+    EXPECT_TRUE(imaging.defocus.bands.empty()) << z;
+    EXPECT_TRUE(std::isfinite(imaging.blur_sigma_at(z))) << z;
+  }
+  cv::Mat half;
+  cv::resize(depth, half, {kDofW / 2, kDofH / 2}, 0, 0, cv::INTER_NEAREST);
+  EXPECT_TRUE(estimate_photo_imaging(photo, half).defocus.found) << "a depth map of another size is resized";
+  EXPECT_THROW(estimate_photo_imaging(photo, cv::Mat(photo.size(), CV_64F, cv::Scalar(2.0))), std::invalid_argument);
 }
 
 TEST(PhotoImaging, APropPastedIntoANoisyPhotoGetsItsNoise) {

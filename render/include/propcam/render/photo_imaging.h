@@ -10,7 +10,10 @@
 //   - noise: a noise level function per channel in display values (the
 //     signal-dependent sensor noise after the tone curve), the lower
 //     envelope of a Laplacian-like residual (Immerkaer 1996) over 8x8 blocks,
-//     binned by intensity (Liu et al. 2006's idea, without their prior).
+//     binned by intensity (Liu et al. 2006's idea, without their prior);
+//   - defocus: where the inferred depth is given, the edges' blur read per
+//     band of depth and fitted by a thin lens's circle of confusion, which
+//     grows with |1/z - 1/z_focus|; kept only where the photo shows it.
 // Our renderer's pixel is a box with no further blur, so the photo's blur is
 // what the prop lacks; its noise lacks the photo's noise less its own.
 #pragma once
@@ -36,15 +39,40 @@ struct NoiseLevelFunction {
   double median_8bit() const;
 };
 
+// The blur of the edges in one band of depth.
+struct DepthBandBlur {
+  double dioptres = 0.0;  // the band's median inverse depth, 1/m
+  double sigma_px = 0.0;
+  int edges = 0;
+};
+
+// Blur that grows away from a focus depth: sigma(z)^2 = base^2 +
+// (per_dioptre * |1/z - focus_dioptres|)^2, a thin lens's circle of
+// confusion (proportional to |1/z - 1/z_focus|) on top of the photo's own
+// blur. Read between the nearest and farthest bands measured, never beyond.
+struct Defocus {
+  bool found = false;
+  double base_sigma_px = 0.0;
+  double focus_dioptres = 0.0;        // 1/m; 0 is focused at infinity
+  double sigma_px_per_dioptre = 0.0;  // px * m
+  double min_dioptres = 0.0, max_dioptres = 0.0;  // the bands' range
+  std::vector<DepthBandBlur> bands;   // what it was fitted to (also when not found)
+  double sigma_at(double depth_m) const;
+};
+
 struct PhotoImaging {
   bool blur_measured = false;   // enough isolated edges to tell
   double blur_sigma_px = 0.0;   // Gaussian sigma beyond a box pixel
   int blur_edges = 0;           // edge pixels the estimate is the lower quartile of
   bool blur_read_through_noise = false;  // a noisy photo's: edges found smoothed, read summed along each edge
+  Defocus defocus;              // where the photo's blur grows with depth
   bool noise_measured = false;  // enough flat blocks to tell
   NoiseLevelFunction noise;
   int noise_blocks = 0;         // blocks the lower envelope was taken over
   double seconds = 0.0;
+  // The blur at a depth (camera z, m): the defocus's where it was found and
+  // the depth is known (> 0, finite), else the photo's one blur.
+  double blur_sigma_at(double depth_m) const;
 };
 
 // Below this sigma an edge is as sharp as our render's (box pixels): no blur is matched.
@@ -73,13 +101,30 @@ double estimate_edge_blur(const cv::Mat& linear, const cv::Mat& mask = {}, int* 
 constexpr int kMinRegionNoisePixels = 64;
 std::array<float, 3> region_noise_sigma(const cv::Mat& display, const cv::Mat& mask, int* pixels = nullptr);
 
-// Both, on a photo decoded with the sRGB curve (capture::load_photo_linear).
-PhotoImaging estimate_photo_imaging(const cv::Mat& photo_srgb_linear);
+// Defocus is told from the bands' blur only when the fit explains it and it
+// spans enough: bands with enough edges, the fitted blur's range across
+// them, bands whose blur is kMinDefocusRatio times the sharpest's (or
+// kMinMatchedBlurPx's), and the fit's residual against a single blur's.
+constexpr int kDefocusBands = 5;
+constexpr int kMinDefocusBands = 3;
+constexpr double kMinDefocusRangePx = 0.6;
+constexpr double kMinDefocusRatio = 1.5;
+constexpr int kMinWideDefocusBands = 2;
+constexpr double kMaxDefocusResidualShare = 0.5;
+
+// All three, on a photo decoded with the sRGB curve
+// (capture::load_photo_linear). `depth` (CV_32F metres along camera z, any
+// size: resized to the photo's; <= 0, non-finite or >= kSkyDepthM is no
+// surface) is optional: without it no defocus is looked for.
+PhotoImaging estimate_photo_imaging(const cv::Mat& photo_srgb_linear, const cv::Mat& depth = {});
 
 // The camera match applied to a composite.
 struct CameraMatchOptions {
   bool blur = true;
   bool noise = true;
+  // The prop's depth (camera z of its base, m), for a photo whose blur grows
+  // with depth; 0: unknown, the photo's one blur.
+  double prop_depth_m = 0.0;
   uint64_t seed = 1;  // the matched noise is a pure function of (seed, pixel around the prop, channel)
 };
 
