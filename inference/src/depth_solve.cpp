@@ -31,7 +31,16 @@ constexpr int kMinGridSide = 2;
 // max_seconds guards against a hang only. Under ASan the bounded iterations
 // take longer than 5 s on a busy 2-core machine, the guard fired part-way and
 // two solves of the same input differed (GeometryHardCases determinism checks).
+// gcc says ASan is on by __SANITIZE_ADDRESS__, clang (the asan and fuzz
+// presets' compiler) only by __has_feature.
 #if defined(__SANITIZE_ADDRESS__)
+#define PROPCAM_ADDRESS_SANITIZED 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define PROPCAM_ADDRESS_SANITIZED 1
+#endif
+#endif
+#if defined(PROPCAM_ADDRESS_SANITIZED)
 constexpr double kHangGuardScale = 20;
 #else
 constexpr double kHangGuardScale = 1;

@@ -225,7 +225,8 @@ bool classify_indoor_combined(const cv::Mat& photo_linear, const render::Pinhole
   const auto short_number = [](double v) { return std::to_string(v).substr(0, 5); };
   const std::string sky_cover = std::to_string(static_cast<int>(std::lround(100 * sky.fraction))) + "%";
   const bool sky_seen = !sky_says_indoor && sky.fraction >= options.sky_decides_fraction;
-  if (sky_seen && classifier && score >= options.confident_indoor_score) {
+  if (sky_seen && classifier && score >= options.confident_indoor_score &&
+      sky.fraction < options.confident_indoor_max_sky) {
     indoor = true;
     report.details["method"] = "svm_over_sky";
     report.why = "\"sky\" covers " + sky_cover + " of the frame, but SVM: indoor (score " + short_number(score) +

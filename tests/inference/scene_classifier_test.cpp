@@ -111,6 +111,12 @@ TEST(SceneClassifier, AConfidentIndoorScoreOverrulesTheSkyAndARealSkyStaysOutdoo
   EXPECT_TRUE(classify_indoor_combined(views[0].photo_linear, camera, references(), overruled, nullptr, trusting, &committed()));
   EXPECT_EQ(overruled.details["method"], "svm_over_sky");
   EXPECT_NE(overruled.why.find("SVM: indoor"), std::string::npos) << overruled.why;
+
+  // A sky over as much of the frame as the cap stays sky, however confident.
+  trusting.confident_indoor_max_sky = by_default.details["sky_fraction"].get<double>();
+  StageReport capped;
+  EXPECT_FALSE(classify_indoor_combined(views[0].photo_linear, camera, references(), capped, nullptr, trusting, &committed()));
+  EXPECT_EQ(capped.details["method"], "sky");
 }
 
 }  // namespace

@@ -92,8 +92,12 @@ struct CombinedSceneClassOptions {
   double sky_decides_fraction = 0.05;
   // A larger "sky" is still a bright wall or ceiling when the classifier's
   // indoor score is at least this (docs/scene_class.md: rooms whose lit wall
-  // the rule took for sky scored +0.20 to +0.57, outdoor views at most +0.07).
+  // the rule took for sky scored +0.20 to +0.57, outdoor views at most +0.07)
+  // and the "sky" is under `confident_indoor_max_sky` of the frame: the
+  // more of the frame is smooth and bright above the horizon, the likelier
+  // it is sky (a featureless frame reads as 54% sky).
   double confident_indoor_score = 0.15;
+  double confident_indoor_max_sky = 0.25;
   KnnOptions knn;
   SkyOptions sky;
 };
