@@ -558,18 +558,23 @@ EdgeFinding edge_finding(const PhotoPlanes& planes, bool noisy) {
   return f;
 }
 
-
-// The blur of the edges within `mask` (empty: all). A noisy photo is read
-// through its noise, directly only when too few edges are found so.
-BlurReading read_blur(const EdgeFinding& f, const cv::Mat& mask) {
-  BlurReading r;
-  if (!f.smoothed_edges.empty()) {
-    r.sigma_px = edge_blur_of(f.planes.luminance, f.smoothed_edges, mask, &r.edges, kMinBlurEdges, kAlongEdgePx);
-    r.through_noise = r.edges > 0;
-    if (r.through_noise) return r;
+// Each band's blur (`band`: CV_8U, a band's index or kNoBand), read as a
+// photo's is: a noisy photo through its noise, and the bands too few edges
+// are found in so, directly.
+std::vector<BlurReading> read_bands(const EdgeFinding& f, const cv::Mat& band, int bands) {
+  if (f.smoothed_edges.empty()) return band_edge_blurs(f.planes.luminance, f.edges, band, bands, 0);
+  std::vector<BlurReading> readings = band_edge_blurs(f.planes.luminance, f.smoothed_edges, band, bands, kAlongEdgePx);
+  cv::Mat unread = band.clone();
+  bool any_unread = false;
+  for (int b = 0; b < bands; ++b) {
+    if (readings[b].edges > 0) unread.setTo(kNoBand, band == b);
+    else any_unread = true;
   }
-  r.sigma_px = edge_blur_of(f.planes.luminance, f.edges, mask, &r.edges, kMinBlurEdges);
-  return r;
+  if (!any_unread) return readings;
+  const std::vector<BlurReading> direct = band_edge_blurs(f.planes.luminance, f.edges, unread, bands, 0);
+  for (int b = 0; b < bands; ++b)
+    if (readings[b].edges == 0) readings[b] = direct[b];
+  return readings;
 }
 
 // --- defocus ---------------------------------------------------------------
@@ -590,7 +595,7 @@ cv::Mat surface_dioptres(const cv::Mat& depth, cv::Size size) {
 }
 
 // Bands of equal pixel count over the surfaces' inverse depth, each read for
-// its blur as the whole photo is (read_blur; the bands too few edges tell
+// its blur as the whole photo is (read_bands; the bands too few edges tell
 // are left out).
 std::vector<DepthBandBlur> band_blurs(const EdgeFinding& f, const cv::Mat& dioptres) {
   std::vector<float> all;
@@ -622,19 +627,7 @@ std::vector<DepthBandBlur> band_blurs(const EdgeFinding& f, const cv::Mat& diopt
     for (int c = 0; c < dioptres.cols; ++c)
       if (u[c] > 0) out[c] = static_cast<uint8_t>(std::upper_bound(lower.begin(), lower.end(), u[c]) - lower.begin() - 1);
   }
-  std::vector<BlurReading> readings;
-  if (!f.smoothed_edges.empty()) {
-    readings = band_edge_blurs(f.planes.luminance, f.smoothed_edges, band, kDefocusBands, kAlongEdgePx);
-    // Bands too few edges are found in through the noise are read directly.
-    cv::Mat unread = band.clone();
-    for (int b = 0; b < kDefocusBands; ++b)
-      if (readings[b].edges > 0) unread.setTo(kNoBand, band == b);
-    const std::vector<BlurReading> direct = band_edge_blurs(f.planes.luminance, f.edges, unread, kDefocusBands, 0);
-    for (int b = 0; b < kDefocusBands; ++b)
-      if (readings[b].edges == 0) readings[b] = direct[b];
-  } else {
-    readings = band_edge_blurs(f.planes.luminance, f.edges, band, kDefocusBands, 0);
-  }
+  const std::vector<BlurReading> readings = read_bands(f, band, kDefocusBands);
   for (int b = 0; b < kDefocusBands; ++b)
     if (readings[b].edges > 0) bands.push_back({at[2 * b + 1], readings[b].sigma_px, readings[b].edges});
   return bands;
@@ -739,7 +732,7 @@ PhotoImaging estimate_photo_imaging(const cv::Mat& photo_srgb_linear, const cv::
   out.noise_measured = out.noise_blocks > 0;
   const bool noisy = out.noise_measured && out.noise.median_8bit() >= kNoisyBlurFloor8bit;
   const EdgeFinding finding = edge_finding(planes, noisy);
-  const BlurReading blur = read_blur(finding, {});
+  const BlurReading blur = read_bands(finding, cv::Mat::zeros(photo_srgb_linear.size(), CV_8U), 1).front();
   out.blur_measured = blur.edges > 0;
   out.blur_sigma_px = blur.sigma_px;
   out.blur_edges = blur.edges;
