@@ -382,8 +382,9 @@ void Appliance::start_analysis(JobId job) {
   }
   const double height = options_.board.camera_mount_height_m;
   const long working_pixels = options_.board.budgets.working_pixels;
+  const render::Vignetting vignetting = options_.board.camera.vignetting;
   std::shared_ptr<Shared> shared = shared_;
-  jobs_->run(job, [this, shared, job, still, height, working_pixels](const std::atomic<bool>& cancel) {
+  jobs_->run(job, [this, shared, job, still, height, working_pixels, vignetting](const std::atomic<bool>& cancel) {
     auto stage_start = std::chrono::steady_clock::now();
     auto on_stage = [&](const std::string& name) {
       if (cancel) throw JobCancelled();
@@ -406,6 +407,7 @@ void Appliance::start_analysis(JobId job) {
     };
     try {
       auto analysis = std::make_shared<Analysis>(analyse_still(still.linear, still.rgb8, height, working_pixels, on_stage));
+      analysis->vignetting = vignetting;
       std::vector<Spot> spots = find_spots(analysis->scene, kMaxSpots);
       std::vector<ui_fb::StageLine> lines;
       for (const auto& r : analysis->scene.reports) {

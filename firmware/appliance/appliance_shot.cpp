@@ -540,11 +540,13 @@ cv::Mat adjusted_composite(const Analysis& analysis, const RenderSnapshot& rende
   } else {
     out = render.composite * scene_scale;
   }
-  // The photo's blur and noise on the prop, once the render has ended (the
+  // The photo's blur, the lens's fall-off and the photo's noise on the prop, once the render has ended (the
   // screen's progressive snapshots stay raw).
   if (!render.layers.coverage.empty()) {
     render::CameraMatchOptions match;
     match.prop_depth_m = render.prop_distance_m;
+    match.vignetting = analysis.vignetting;
+    match.vignetting_source = "the board's calibration";
     out = render::match_camera(analysis.scene_photo * scene_scale, out, render.layers.coverage, analysis.scene.imaging,
                                match, analysis.scene.gamma);
   }

@@ -37,6 +37,9 @@ struct Analysis {
   // the composite is exported at its size.
   cv::Mat full_photo_linear;
   inference::SceneModel scene;
+  // The lens's calibrated fall-off (the board's), given to the prop by the
+  // camera match; unknown: none.
+  render::Vignetting vignetting;
 };
 
 // Infers the scene of a still, reduced to `working_pixels` when larger.

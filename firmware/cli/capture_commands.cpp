@@ -19,6 +19,7 @@
 #include "propcam/capture/recording.h"
 #include "propcam/capture/replay_source.h"
 #include "propcam/inference/data_dir.h"
+#include "propcam/render/vignetting.h"
 
 namespace propcam::firmware {
 namespace {
@@ -309,6 +310,40 @@ int run_bench_capture_command(const CaptureBenchArgs& a) {
                 r["latency"]["p95_ms"].get<double>(), r["daemon_latency"]["mean_ms"].get<double>(),
                 r["daemon_latency"]["p95_ms"].get<double>(),
                 static_cast<unsigned long long>(r["frames_dropped"].get<uint64_t>()));
+  return 0;
+}
+
+void add_calibrate_vignetting_options(CLI::App& cmd, CalibrateVignettingArgs& a) {
+  cmd.add_option("frames", a.frames,
+                 "Flat-field photos at the camera's still framing: an evenly lit white card filling the frame, or a "
+                 "diffuser over the lens (several are averaged)")
+      ->required();
+  cmd.add_flag("--json", a.json_out, "Machine-readable result on stdout");
+}
+
+int run_calibrate_vignetting_command(const CalibrateVignettingArgs& a) {
+  std::vector<cv::Mat> frames;
+  for (const std::string& path : a.frames) frames.push_back(capture::load_photo_linear(path));
+  const render::VignettingFit fit = render::fit_vignetting(frames);
+  const render::Vignetting& v = fit.vignetting;
+  if (a.json_out) {
+    const json out = {{"r2", v.r2},
+                      {"r4", v.r4},
+                      {"corner_gain", v.at_radius(1.0)},
+                      {"half_radius_gain", v.at_radius(0.5)},
+                      {"residual_rms", fit.residual_rms},
+                      {"light_gradient", fit.gradient},
+                      {"pixels", fit.pixels},
+                      {"frames", a.frames.size()}};
+    std::printf("%s\n", out.dump(2).c_str());
+    return 0;
+  }
+  std::printf("vignetting: r2 %.4f, r4 %.4f: gain %.3f in the corners, %.3f at half the radius\n", v.r2, v.r4,
+              v.at_radius(1.0), v.at_radius(0.5));
+  std::printf("fit: %d px of %zu frame(s) reduced; %.2f%% of log luminance left; the light's own gradient %.3f taken out\n",
+              fit.pixels, a.frames.size(), 100.0 * fit.residual_rms, fit.gradient);
+  std::printf("board.json, in \"camera\": \"vignetting\": {\"r2\": %.4f, \"r4\": %.4f}\n", v.r2, v.r4);
+  std::printf("propcam composite: --vignetting=%.4f,%.4f\n", v.r2, v.r4);
   return 0;
 }
 

@@ -1,5 +1,6 @@
 // The camera commands, in rpicam style: list the cameras, record raw frames,
-// shoot a still, and time the capture daemon.
+// shoot a still, time the capture daemon, and calibrate the lens's
+// vignetting from flat-field photos (for board.json).
 #pragma once
 
 #include <CLI/CLI.hpp>
@@ -60,5 +61,15 @@ struct CaptureBenchArgs {
 };
 void add_bench_capture_options(CLI::App& command, CaptureBenchArgs& args);
 int run_bench_capture_command(const CaptureBenchArgs& args);
+
+// The lens's fall-off from flat-field photos: prints what board.json's
+// camera.vignetting and `propcam composite --vignetting` take.
+struct CalibrateVignettingArgs {
+  std::vector<std::string> frames;  // flat-field photos, the camera's still framing
+  bool json_out = false;
+};
+
+void add_calibrate_vignetting_options(CLI::App& cmd, CalibrateVignettingArgs& args);
+int run_calibrate_vignetting_command(const CalibrateVignettingArgs& args);
 
 }  // namespace propcam::firmware

@@ -44,6 +44,10 @@ std::vector<Command> propcam_commands() {
                           add_export_options, run_export_command),
       command<SpoolArgs>("spool", "List the exports waiting in the spool; --flush moves them to the stick", User,
                          kNoModels, add_spool_options, run_spool_command),
+      command<CalibrateVignettingArgs>(
+          "calibrate-vignetting",
+          "Fit the lens's fall-off toward the corners from flat-field photos (for board.json and --vignetting)", User,
+          kNoModels, add_calibrate_vignetting_options, run_calibrate_vignetting_command),
       command<ConsoleArgs>("console", "The VT under the display: its mode, or back to text mode (--restore)", User,
                            kNoModels, add_console_options, run_console_command),
 

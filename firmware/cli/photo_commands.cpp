@@ -162,10 +162,32 @@ json render_plan_json(const CompositeResult& r) {
                      {"seconds", r.reach.seconds}}}};
 }
 
+// "R2" or "R2,R4", as `propcam calibrate vignetting` prints them.
+render::Vignetting parse_vignetting(const std::string& text) {
+  render::Vignetting v;
+  const auto comma = text.find(',');
+  std::size_t used = 0;
+  try {
+    v.r2 = std::stod(text.substr(0, comma), &used);
+    if (used != text.substr(0, comma).size()) throw std::invalid_argument("");
+    if (comma != std::string::npos) {
+      const std::string r4 = text.substr(comma + 1);
+      v.r4 = std::stod(r4, &used);
+      if (used != r4.size()) throw std::invalid_argument("");
+    }
+  } catch (const std::exception&) {
+    throw std::invalid_argument("--vignetting: expected R2 or R2,R4 (numbers), not \"" + text + "\"");
+  }
+  if (const std::string problem = render::vignetting_problem(v); !problem.empty())
+    throw std::invalid_argument("--vignetting " + text + ": " + problem);
+  return v;
+}
+
 json camera_match_json(const render::CameraMatchReport& r) {
   json steps = json::array();
   for (const auto& step : r.steps) steps.push_back({{"effect", step.effect}, {"applied", step.applied}, {"why", step.why}});
-  return {{"steps", steps}, {"blur_sigma_px", r.blur_sigma_px}, {"noise_added_8bit", r.noise_added_8bit},
+  return {{"steps", steps}, {"blur_sigma_px", r.blur_sigma_px}, {"vignette_gain", r.vignette_gain},
+          {"noise_added_8bit", r.noise_added_8bit},
           {"prop_noise_8bit", r.prop_noise_8bit}, {"seconds", r.seconds}};
 }
 
@@ -293,6 +315,9 @@ void add_composite_options(CLI::App& cmd, CompositeArgs& a) {
   cmd.add_flag("--no-denoise", a.no_denoise, "Keep the raw Monte Carlo change (no edge-aware filter of the prop's change)");
   cmd.add_flag("--no-camera-match", a.no_camera_match,
                "Leave the prop as rendered (the photo's blur and noise not matched)");
+  cmd.add_option("--vignetting", a.vignetting,
+                 "The lens's calibrated fall-off R2[,R4] (`propcam calibrate vignetting`): the prop is darkened "
+                 "toward the corners as the photo was");
 }
 
 namespace {
@@ -346,6 +371,10 @@ CompositeOptions composite_options(const CompositeArgs& a, const firmware::JobBu
   options.denoise = !a.no_denoise;
   options.match_camera = !a.no_camera_match;
   options.camera_match.seed = a.seed;
+  if (!a.vignetting.empty()) {
+    options.camera_match.vignetting = parse_vignetting(a.vignetting);
+    options.camera_match.vignetting_source = "--vignetting";
+  }
   options.light_layers = !a.light_scale.empty();
   options.time_budget_seconds = budget.render_seconds;
   // The prop's edges at the photo's own size, unless depth of field blurs them anyway.
@@ -460,6 +489,7 @@ int run_composite_command(const CompositeArgs& a) {
   const int max_bounces = renderer_bounces(a.bounces);
   const MaterialOverride material = material_from_args(a);
   const firmware::JobBudget budget = job_budget_of(a.working_size, a.memory_mb, a.time_budget);
+  if (!a.vignetting.empty()) parse_vignetting(a.vignetting);  // refused before the inference's seconds
   const render::Mesh prop = load_prop(a.prop, material);
   placement.height_m = a.height > 0 ? a.height : natural_height(a.prop, prop);
   placement.yaw_deg = a.yaw;

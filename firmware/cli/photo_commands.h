@@ -45,6 +45,7 @@ struct CompositeArgs {
   double aperture = 0, focus = 0;
   std::string light_scale;  // "I=S,I=S": relight after rendering
   bool relight_scene = false;
+  std::string vignetting;   // "R2[,R4]": the lens's calibrated fall-off (render/vignetting.h)
 };
 
 void add_composite_options(CLI::App& cmd, CompositeArgs& args);

@@ -184,6 +184,21 @@ class Checker {
     return x;
   }
 
+  // A finite number in [-bound, bound].
+  double number(const json& obj, const std::string& ptr, const std::string& key, double bound) const {
+    const json& v = field(obj, ptr, key);
+    const std::string p = child(ptr, key);
+    if (!v.is_number()) fail(p, std::string("must be a number, not ") + type_name(v));
+    const double x = v.get<double>();
+    if (!std::isfinite(x)) fail(p, "must be finite");
+    if (std::abs(x) > bound) {
+      std::ostringstream os;
+      os << "out of range [" << -bound << ", " << bound << "]: " << x;
+      fail(p, os.str());
+    }
+    return x;
+  }
+
   // "WxH", each side in [lo, hi].
   Size size(const json& obj, const std::string& ptr, const std::string& key, int lo, int hi) const {
     const std::string p = child(ptr, key);
@@ -358,7 +373,7 @@ void read_camera_id(const Checker& c, const std::string& id, const std::string& 
 CameraConfig read_camera(const Checker& c, const json& root) {
   const std::string ptr = "/camera";
   const json& j = c.object(root, "", "camera");
-  c.only_fields(j, ptr, {"id", "viewfinder", "still"});
+  c.only_fields(j, ptr, {"id", "viewfinder", "still", "vignetting"});
   CameraConfig cam;
   read_camera_id(c, c.string(j, ptr, "id"), ptr + "/id", cam);
 
@@ -375,6 +390,16 @@ CameraConfig read_camera(const Checker& c, const json& root) {
   const json& still = c.object(j, ptr, "still");
   c.only_fields(still, sp, {"size"});
   cam.still_size = c.size(still, sp, "size", 16, 16384);
+
+  // Optional: the lens's calibrated fall-off (`propcam calibrate vignetting`).
+  if (j.contains("vignetting")) {
+    const std::string gp = ptr + "/vignetting";
+    const json& v = c.object(j, ptr, "vignetting");
+    c.only_fields(v, gp, {"r2", "r4"});
+    cam.vignetting.r2 = c.number(v, gp, "r2", render::kMaxVignettingCoefficient);
+    if (v.contains("r4")) cam.vignetting.r4 = c.number(v, gp, "r4", render::kMaxVignettingCoefficient);
+    if (const std::string problem = render::vignetting_problem(cam.vignetting); !problem.empty()) c.fail(gp, problem);
+  }
   return cam;
 }
 

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "common/job_budget.h"
+#include "propcam/render/vignetting.h"
 #include "propcam/ui_fb/buttons.h"
 
 namespace propcam::firmware {
@@ -84,6 +85,9 @@ struct CameraConfig {
   Size viewfinder_size;
   double viewfinder_fps = 0.0;
   Size still_size;
+  // The lens's fall-off at the still's framing, from its calibration
+  // (optional; unknown: the composite applies none).
+  render::Vignetting vignetting;
 };
 
 // Where a storage folder lives: a path, found at run time by looking at the

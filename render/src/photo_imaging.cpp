@@ -889,6 +889,29 @@ cv::Mat match_camera(const cv::Mat& photo_linear, const cv::Mat& composite_linea
   }
   rep.steps.push_back(blur);
 
+  // The lens darkened the photo toward its corners: the prop gets the same
+  // (after the blur, which commutes with a fall-off this smooth; before the
+  // sensor's noise, whose level follows the darkened value).
+  CameraMatchStep vignette{"vignette", false, ""};
+  if (!options.vignetting.known()) {
+    vignette.why = "no calibrated vignetting (one photo cannot tell a lens's fall-off from the scene's)";
+  } else if (const std::string problem = vignetting_problem(options.vignetting); !problem.empty()) {
+    vignette.why = "calibrated vignetting unusable: " + problem;
+  } else if (const cv::Rect covered = covered_bounds(prop_coverage); covered.empty()) {
+    vignette.why = "the prop covers no pixel";
+  } else {
+    if (out.data == composite_linear.data) out = out.clone();  // never the caller's buffer
+    vignette_prop(photo_linear, out, prop_coverage, options.vignetting);
+    rep.vignette_gain = options.vignetting.at_pixel(covered.x + 0.5 * covered.width - 0.5,
+                                                    covered.y + 0.5 * covered.height - 0.5, out.size());
+    vignette.applied = true;
+    std::snprintf(text, sizeof text, "lens fall-off %.2f at the prop, %.2f in the corners (%s)", rep.vignette_gain,
+                  options.vignetting.at_radius(1.0),
+                  options.vignetting_source.empty() ? "calibration" : options.vignetting_source.c_str());
+    vignette.why = text;
+  }
+  rep.steps.push_back(vignette);
+
   CameraMatchStep noise{"noise", false, ""};
   const double level = imaging.noise_measured ? imaging.noise.median_8bit() : 0.0;
   if (!options.noise) {

@@ -184,6 +184,23 @@ TEST_F(ApplianceShotTest, RenderConvergesAndRelightsWithoutRerendering) {
   double max_diff = 0;
   cv::minMaxLoc(diff.reshape(1), nullptr, &max_diff);
   EXPECT_LT(max_diff, 1e-3);
+  // The board's calibrated vignetting darkens the cube's pixels by the
+  // lens's gain there, and nothing else.
+  Analysis vignetted = analysis();
+  vignetted.vignetting = render::Vignetting{-0.8, 0.0};
+  const cv::Mat dimmed = capture::srgb_linear_to_response_linear(adjusted_composite(vignetted, *done, Adjustment{}),
+                                                                 analysis().scene.gamma);
+  const cv::Mat as_rendered = capture::srgb_linear_to_response_linear(plain, analysis().scene.gamma);
+  EXPECT_LT(cv::norm(dimmed, as_rendered, cv::NORM_INF, done->layers.coverage == 0), 1e-5);
+  int on_cube = 0;
+  for (int r = 0; r < dimmed.rows; ++r)
+    for (int c = 0; c < dimmed.cols; ++c) {
+      if (done->layers.coverage.at<float>(r, c) < 1.0f) continue;
+      const double gain = vignetted.vignetting.at_pixel(c, r, dimmed.size());
+      EXPECT_NEAR(dimmed.at<cv::Vec3f>(r, c)[1], gain * as_rendered.at<cv::Vec3f>(r, c)[1], 1e-4) << r << "," << c;
+      ++on_cube;
+    }
+  EXPECT_GT(on_cube, 10);
   // One stop more scene light doubles the response-linear photo far from the cube.
   Adjustment brighter;
   brighter.scene_ev = 1.0;

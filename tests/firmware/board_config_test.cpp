@@ -175,6 +175,15 @@ TEST_F(BoardFiles, ValidVariantsLoad) {
   EXPECT_EQ(b.budgets.working_pixels, 1600L * 1200L);
   EXPECT_EQ(b.budgets.memory_mb, 1024);
   EXPECT_EQ(b.budgets.render_seconds, 30.0);
+  // The lens's vignetting: none unless calibrated; r4 optional.
+  EXPECT_FALSE(g.camera.vignetting.known());
+  json vignetted = gpiod_board();
+  vignetted["camera"]["vignetting"] = json::parse(R"({"r2": -0.42, "r4": 0.05, "comment": "flat field 2026-12"})");
+  const BoardConfig v = load_board_file(write(vignetted));
+  EXPECT_EQ(v.camera.vignetting.r2, -0.42);
+  EXPECT_EQ(v.camera.vignetting.r4, 0.05);
+  vignetted["camera"]["vignetting"] = json::parse(R"({"r2": -0.3})");
+  EXPECT_EQ(load_board_file(write(vignetted)).camera.vignetting.r4, 0.0);
   // load_board finds files written under the root too.
   EXPECT_EQ(list_boards(root_), std::vector<std::string>{"b"});
   EXPECT_EQ(load_board(root_, "b").name, "b");
@@ -257,6 +266,14 @@ std::vector<BadCase> bad_cases() {
       {"fps a string", G, set_to("/camera/viewfinder/fps", "30"), "/camera/viewfinder/fps", "must be a number, not a string"},
       {"missing still", G, without("/camera/still"), "/camera/still", "missing"},
       {"still size tiny", G, set_to("/camera/still/size", "8x8"), "/camera/still/size", "each side must be in [16, 16384]"},
+      {"vignetting r2 missing", G, set_to("/camera/vignetting", json{{"r4", 0.1}}), "/camera/vignetting/r2", "missing"},
+      {"vignetting misspelt", G, set_to("/camera/vignetting", json{{"r2", -0.3}, {"k1", 0.1}}), "/camera/vignetting/k1",
+       "unknown field"},
+      {"vignetting a string", G, set_to("/camera/vignetting", json{{"r2", "-0.3"}}), "/camera/vignetting/r2",
+       "must be a number, not a string"},
+      {"vignetting huge", G, set_to("/camera/vignetting", json{{"r2", -50}}), "/camera/vignetting/r2", "out of range [-5, 5]"},
+      {"vignetting black corners", G, set_to("/camera/vignetting", json{{"r2", -4.0}}), "/camera/vignetting",
+       "outside [0.05, 1.50]"},
       {"missing height", G, without("/camera_mount_height_m"), "/camera_mount_height_m", "missing"},
       {"negative height", G, set_to("/camera_mount_height_m", -1.4), "/camera_mount_height_m", "out of range (0, 10]"},
       {"zero height", G, set_to("/camera_mount_height_m", 0), "/camera_mount_height_m", "out of range"},

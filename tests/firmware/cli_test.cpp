@@ -156,6 +156,44 @@ TEST(Cli, ViewCutsAPhotoWithAKnownCameraFromAPanorama) {
   EXPECT_NE(r.exit_code, 0);
 }
 
+// The lens's fall-off from flat-field photos, and a composite given it.
+TEST(Cli, CalibrateVignettingFitsAFlatFieldAndCompositeTakesIt) {
+  constexpr double kR2 = -0.5;
+  cv::Mat flat(240, 320, CV_32FC3);
+  for (int r = 0; r < flat.rows; ++r)
+    for (int c = 0; c < flat.cols; ++c) {
+      const double s2 = (std::pow(c + 0.5 - 160.0, 2) + std::pow(r + 0.5 - 120.0, 2)) / (200.0 * 200.0);
+      flat.at<cv::Vec3f>(r, c) = cv::Vec3f::all(static_cast<float>(0.5 * std::exp(kR2 * s2)));
+    }
+  const std::string frame = temp("flat.png");
+  propcam::capture::write_image(frame, flat);
+  CliRun r = propcam("calibrate-vignetting " + frame + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const json fit = json_tail(r.out);
+  EXPECT_NEAR(fit["corner_gain"].get<double>(), std::exp(kR2), 0.01) << r.out;
+  r = propcam("calibrate-vignetting " + frame);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("\"vignetting\": {\"r2\""), std::string::npos) << "what board.json takes: " << r.out;
+  // A room is no flat field.
+  r = propcam("calibrate-vignetting " + fixture_photo());
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.out.find("not a flat field"), std::string::npos) << r.out;
+
+  r = propcam("composite " + fixture_photo() + " --prop vase --at 80,95 --spp 1 --vignetting=-0.5,0.02 --json -o " +
+              temp("vignetted.png"));
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const json match = json_tail(r.out)["camera_match"];
+  ASSERT_EQ(match["steps"][1]["effect"], "vignette");
+  EXPECT_TRUE(match["steps"][1]["applied"].get<bool>()) << match.dump();
+  EXPECT_LT(match["vignette_gain"].get<double>(), 1.0);
+  for (const std::string& bad : {"banana", "-0.5,x", "-9", "nan"}) {
+    r = propcam("composite " + fixture_photo() + " --prop vase --at 80,95 --spp 1 --vignetting " + bad + " -o " +
+                temp("bad_vignetting.png"));
+    EXPECT_EQ(r.exit_code, 2) << bad << ": " << r.out;
+    EXPECT_NE(r.out.find("--vignetting"), std::string::npos) << bad << ": " << r.out;
+  }
+}
+
 TEST(Cli, BadInputIsAClearErrorNotACrash) {
   CliRun r = propcam("composite " + fixture_photo() + " --prop vase --at banana -o " + temp("x.png"));
   EXPECT_EQ(r.exit_code, 2);

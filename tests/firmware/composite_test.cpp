@@ -163,7 +163,7 @@ TEST_F(CompositeTest, APropInABlurredPhotoIsAsSoftAsThePhoto) {
   CompositeOptions raw_options;
   raw_options.match_camera = false;
   const CompositeResult raw = composite_prop(blurred, scene, prop, at_free_floor(0.5), s, raw_options);
-  ASSERT_EQ(matched.camera_match.steps.size(), 2u);
+  ASSERT_EQ(matched.camera_match.steps.size(), 3u);
   EXPECT_TRUE(matched.camera_match.steps[0].applied) << matched.camera_match.steps[0].why;
   // The prop's silhouette: a band around where its coverage crosses a half.
   const cv::Mat inside = raw.render.coverage > 0.5f;

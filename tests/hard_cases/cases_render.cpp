@@ -1,6 +1,7 @@
 // render: a light at grazing angle, a prop at the horizon, zero samples per
 // pixel, degenerate and non-finite meshes, environment maps with NaN / Inf /
-// negative texels, broken cameras, corrupt mesh and scene files.
+// negative texels, broken cameras, corrupt mesh and scene files, a scene
+// taken for a flat field.
 #include <filesystem>
 #include <limits>
 
@@ -14,6 +15,7 @@
 #include "propcam/render/props.h"
 #include "propcam/render/scene.h"
 #include "propcam/render/scene_file.h"
+#include "propcam/render/vignetting.h"
 
 namespace propcam::render {
 namespace {
@@ -203,6 +205,13 @@ void add_render_cases(std::vector<HardCase>& cases) {
                      ScratchDir dir("SceneFileTruncated");
                      write_text_file(dir / "cut.json", "{\"camera\": {\"K\": {\"fx\": 20,");
                      load_scene_file((dir / "cut.json").string());
+                   }});
+  cases.push_back({"VignettingFromAScene", m,
+                   "fit_vignetting on a 64x48 frame half dark, half bright (a scene, not a flat field)",
+                   "error saying it is not a flat field", Expect::Error, {"not a flat field"}, [](Digest&) {
+                     cv::Mat frame(48, 64, CV_32FC3, cv::Scalar::all(0.1));
+                     frame.colRange(32, 64).setTo(cv::Scalar::all(0.6));
+                     fit_vignetting({frame});
                    }});
 }
 

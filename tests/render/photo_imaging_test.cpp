@@ -223,9 +223,10 @@ TEST(PhotoImaging, APropPastedIntoABlurredPhotoGetsThePhotosEdgeWidth) {
   EXPECT_NEAR(imaging.blur_sigma_px, sigma, 0.2 * sigma);
   CameraMatchReport report;
   const cv::Mat matched = match_camera(photo, composite, coverage, imaging, {}, 1.0, &report);
-  ASSERT_EQ(report.steps.size(), 2u);
+  ASSERT_EQ(report.steps.size(), 3u);
   EXPECT_TRUE(report.steps[0].applied) << report.steps[0].why;
-  EXPECT_FALSE(report.steps[1].applied) << "a clean photo gets no noise: " << report.steps[1].why;
+  EXPECT_FALSE(report.steps[1].applied) << "no calibrated vignetting: " << report.steps[1].why;
+  EXPECT_FALSE(report.steps[2].applied) << "a clean photo gets no noise: " << report.steps[2].why;
   // The disc's silhouette: a ring around its radius.
   cv::Mat ring = cv::Mat::zeros(kH, kW, CV_8U);
   cv::circle(ring, {160, 120}, 45, 255, 5);
@@ -373,7 +374,8 @@ TEST(PhotoImaging, APropPastedIntoANoisyPhotoGetsItsNoise) {
   ASSERT_TRUE(imaging.noise_measured);
   CameraMatchReport report;
   const cv::Mat matched = match_camera(photo, composite, coverage, imaging, {}, 1.0, &report);
-  EXPECT_TRUE(report.steps[1].applied) << report.steps[1].why;
+  ASSERT_EQ(report.steps.at(2).effect, "noise");
+  EXPECT_TRUE(report.steps[2].applied) << report.steps[2].why;
   // The prop's pixels now carry the photo's noise; every other pixel is untouched.
   cv::Mat display = to_display(matched), quantised;
   display.convertTo(quantised, CV_8UC3, 255.0);

@@ -24,6 +24,8 @@
 #include <string>
 #include <vector>
 
+#include "propcam/render/vignetting.h"
+
 namespace propcam::render {
 
 // Intensity bins of the noise level function over display values [0, 1].
@@ -125,11 +127,16 @@ struct CameraMatchOptions {
   // The prop's depth (camera z of its base, m), for a photo whose blur grows
   // with depth; 0: unknown, the photo's one blur.
   double prop_depth_m = 0.0;
+  // The lens's vignetting from the camera's calibration (a board's
+  // board.json, `propcam composite --vignetting`), and where it came from;
+  // unknown: none applied (a photo alone cannot tell it).
+  Vignetting vignetting;
+  std::string vignetting_source;
   uint64_t seed = 1;  // the matched noise is a pure function of (seed, pixel around the prop, channel)
 };
 
 struct CameraMatchStep {
-  std::string effect;  // "blur" | "noise"
+  std::string effect;  // "blur" | "vignette" | "noise", in the order applied
   bool applied = false;
   std::string why;
 };
@@ -137,6 +144,7 @@ struct CameraMatchStep {
 struct CameraMatchReport {
   std::vector<CameraMatchStep> steps;
   double blur_sigma_px = 0.0;        // applied to the prop's change
+  double vignette_gain = 1.0;        // the lens's gain at the prop's centre, applied to its pixels
   double noise_added_8bit = 0.0;     // median sigma added to the prop's pixels
   double prop_noise_8bit = 0.0;      // the render's own noise on them, measured
   double seconds = 0.0;
@@ -158,9 +166,11 @@ cv::Mat blur_change(const cv::Mat& photo_linear, const cv::Mat& composite_linear
 cv::Mat add_matched_noise(const cv::Mat& display, const cv::Mat& coverage, const NoiseLevelFunction& photo_noise,
                           uint64_t seed, CameraMatchReport* report = nullptr);
 
-// Both steps where the estimate says the photo has them, on a composite in
-// the photo's response-linear space (capture::srgb_linear_to_response_linear
-// with `response_gamma`): blur there, noise in display values. Returns the
+// Each step where the estimate (or the camera's calibration) says the photo
+// has it, on a composite in the photo's response-linear space
+// (capture::srgb_linear_to_response_linear with `response_gamma`): blur and
+// the vignette there, then noise in display values (the sensor's, after the
+// lens). Returns the
 // matched composite in the same space.
 cv::Mat match_camera(const cv::Mat& photo_linear, const cv::Mat& composite_linear, const cv::Mat& coverage,
                      const PhotoImaging& imaging, const CameraMatchOptions& options, double response_gamma,
