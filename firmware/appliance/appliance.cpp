@@ -406,8 +406,8 @@ void Appliance::start_analysis(JobId job) {
       stage_start = std::chrono::steady_clock::now();
     };
     try {
-      auto analysis = std::make_shared<Analysis>(analyse_still(still.linear, still.rgb8, height, working_pixels, on_stage));
-      analysis->vignetting = vignetting;
+      auto analysis = std::make_shared<Analysis>(
+          analyse_still(still.linear, still.rgb8, height, working_pixels, on_stage, vignetting));
       std::vector<Spot> spots = find_spots(analysis->scene, kMaxSpots);
       std::vector<ui_fb::StageLine> lines;
       for (const auto& r : analysis->scene.reports) {

@@ -29,7 +29,8 @@ namespace fs = std::filesystem;
 using appliance::Tier;
 
 Analysis analyse_still(const cv::Mat& photo_linear, const cv::Mat& photo_rgb8, double camera_height_m,
-                       long working_pixels, const std::function<void(const std::string&)>& on_stage) {
+                       long working_pixels, const std::function<void(const std::string&)>& on_stage,
+                       const render::Vignetting& vignetting) {
   inference::InferenceOptions options;
   options.camera_height_m = camera_height_m;
   options.on_stage = on_stage;
@@ -43,7 +44,8 @@ Analysis analyse_still(const cv::Mat& photo_linear, const cv::Mat& photo_rgb8, d
     a.photo_linear = photo_linear;
     a.photo_rgb8 = photo_rgb8;
   }
-  a.scene = inference::infer_scene(a.photo_linear, options);
+  a.vignetting = vignetting;
+  a.scene = inference::infer_scene(render::devignette(a.photo_linear, vignetting), options);
   a.scene.source_photo = "appliance still";
   // Light is added in the photo's own linear space (its camera response undone).
   a.scene_photo = capture::srgb_linear_to_response_linear(a.photo_linear, a.scene.gamma);

@@ -44,9 +44,11 @@ struct Analysis {
 
 // Infers the scene of a still, reduced to `working_pixels` when larger.
 // `on_stage` is called before each stage with its name; it may throw
-// JobCancelled to stop between stages.
+// JobCancelled to stop between stages. A known `vignetting` (the board's
+// calibration) is divided out of the photo the scene is inferred from.
 Analysis analyse_still(const cv::Mat& photo_linear, const cv::Mat& photo_rgb8, double camera_height_m,
-                       long working_pixels, const std::function<void(const std::string&)>& on_stage);
+                       long working_pixels, const std::function<void(const std::string&)>& on_stage,
+                       const render::Vignetting& vignetting = {});
 
 // ---------------------------------------------------------------- props
 

@@ -31,6 +31,29 @@ void LensPrior::apply(inference::CameraOptions& o, const std::string& photo_path
   }
 }
 
+// "R2" or "R2,R4", as `propcam calibrate-vignetting` prints them.
+render::Vignetting LensPrior::fall_off() const {
+  const std::string& text = vignetting;
+  if (text.empty()) return {};
+  render::Vignetting v;
+  const auto comma = text.find(',');
+  std::size_t used = 0;
+  try {
+    v.r2 = std::stod(text.substr(0, comma), &used);
+    if (used != text.substr(0, comma).size()) throw std::invalid_argument("");
+    if (comma != std::string::npos) {
+      const std::string r4 = text.substr(comma + 1);
+      v.r4 = std::stod(r4, &used);
+      if (used != r4.size()) throw std::invalid_argument("");
+    }
+  } catch (const std::exception&) {
+    throw std::invalid_argument("--vignetting: expected R2 or R2,R4 (numbers), not \"" + text + "\"");
+  }
+  if (const std::string problem = render::vignetting_problem(v); !problem.empty())
+    throw std::invalid_argument("--vignetting " + text + ": " + problem);
+  return v;
+}
+
 namespace {
 
 using nlohmann::json;
@@ -70,7 +93,7 @@ inference::SceneModel infer_with_progress(const cv::Mat& photo, const std::strin
   lens.apply(options.camera, source);
   options.camera.prior_focal_px *= pixel_scale;
   options.on_stage = [&](const std::string& s) { progress.stage("infer: " + s); };
-  inference::SceneModel scene = inference::infer_scene(photo, options);
+  inference::SceneModel scene = inference::infer_scene(render::devignette(photo, lens.fall_off()), options);
   scene.source_photo = source;
   return scene;
 }
@@ -162,25 +185,10 @@ json render_plan_json(const CompositeResult& r) {
                      {"seconds", r.reach.seconds}}}};
 }
 
-// "R2" or "R2,R4", as `propcam calibrate vignetting` prints them.
-render::Vignetting parse_vignetting(const std::string& text) {
-  render::Vignetting v;
-  const auto comma = text.find(',');
-  std::size_t used = 0;
-  try {
-    v.r2 = std::stod(text.substr(0, comma), &used);
-    if (used != text.substr(0, comma).size()) throw std::invalid_argument("");
-    if (comma != std::string::npos) {
-      const std::string r4 = text.substr(comma + 1);
-      v.r4 = std::stod(r4, &used);
-      if (used != r4.size()) throw std::invalid_argument("");
-    }
-  } catch (const std::exception&) {
-    throw std::invalid_argument("--vignetting: expected R2 or R2,R4 (numbers), not \"" + text + "\"");
-  }
-  if (const std::string problem = render::vignetting_problem(v); !problem.empty())
-    throw std::invalid_argument("--vignetting " + text + ": " + problem);
-  return v;
+void add_vignetting_option(CLI::App& cmd, LensPrior& lens) {
+  cmd.add_option("--vignetting", lens.vignetting,
+                 "The lens's calibrated fall-off R2[,R4] (`propcam calibrate-vignetting`; write --vignetting=R2,R4): "
+                 "divided out of the photo the scene is inferred from, and given to the prop");
 }
 
 json camera_match_json(const render::CameraMatchReport& r) {
@@ -220,6 +228,7 @@ void add_infer_options(CLI::App& cmd, InferArgs& a) {
                  "Calibrated focal length in pixels at the photo's size (a prior for the camera stage)")
       ->check(within(inference::kFocalPxRange));
   cmd.add_flag("--fixed-focal", a.lens.fixed, "Use --focal as the focal length (estimate the rotation only)");
+  add_vignetting_option(cmd, a.lens);
   cmd.add_option("--working-size", a.working_size,
                  "A larger photo is inferred reduced to this many pixels (WxH), its aspect kept")
       ->capture_default_str();
@@ -315,9 +324,7 @@ void add_composite_options(CLI::App& cmd, CompositeArgs& a) {
   cmd.add_flag("--no-denoise", a.no_denoise, "Keep the raw Monte Carlo change (no edge-aware filter of the prop's change)");
   cmd.add_flag("--no-camera-match", a.no_camera_match,
                "Leave the prop as rendered (the photo's blur and noise not matched)");
-  cmd.add_option("--vignetting", a.vignetting,
-                 "The lens's calibrated fall-off R2[,R4] (`propcam calibrate vignetting`): the prop is darkened "
-                 "toward the corners as the photo was");
+  add_vignetting_option(cmd, a.lens);
 }
 
 namespace {
@@ -371,10 +378,8 @@ CompositeOptions composite_options(const CompositeArgs& a, const firmware::JobBu
   options.denoise = !a.no_denoise;
   options.match_camera = !a.no_camera_match;
   options.camera_match.seed = a.seed;
-  if (!a.vignetting.empty()) {
-    options.camera_match.vignetting = parse_vignetting(a.vignetting);
-    options.camera_match.vignetting_source = "--vignetting";
-  }
+  options.camera_match.vignetting = a.lens.fall_off();
+  options.camera_match.vignetting_source = "--vignetting";
   options.light_layers = !a.light_scale.empty();
   options.time_budget_seconds = budget.render_seconds;
   // The prop's edges at the photo's own size, unless depth of field blurs them anyway.
@@ -489,7 +494,7 @@ int run_composite_command(const CompositeArgs& a) {
   const int max_bounces = renderer_bounces(a.bounces);
   const MaterialOverride material = material_from_args(a);
   const firmware::JobBudget budget = job_budget_of(a.working_size, a.memory_mb, a.time_budget);
-  if (!a.vignetting.empty()) parse_vignetting(a.vignetting);  // refused before the inference's seconds
+  a.lens.fall_off();  // a bad --vignetting is refused before the inference's seconds
   const render::Mesh prop = load_prop(a.prop, material);
   placement.height_m = a.height > 0 ? a.height : natural_height(a.prop, prop);
   placement.yaw_deg = a.yaw;

@@ -9,17 +9,22 @@
 #include "cli/cli_options.h"
 #include "common/job_budget.h"
 #include "propcam/inference/infer.h"
+#include "propcam/render/vignetting.h"
 
 namespace propcam::firmware {
 
 // The lens: a calibrated focal length in pixels at the photo's size, given on
 // the command line, is the camera stage's prior or, fixed, its focal length;
 // otherwise the photo's EXIF focal length (if any) is the prior (not fixed:
-// the lines may still overrule it).
+// the lines may still overrule it). A calibrated vignetting is divided out
+// of the photo the scene is inferred from, and given to the prop.
 struct LensPrior {
   double focal_px = 0;  // 0: none
   bool fixed = false;
+  std::string vignetting;  // "R2[,R4]" (render/vignetting.h); empty: none
   void apply(inference::CameraOptions& o, const std::string& photo_path = {}) const;
+  // The parsed vignetting; throws std::invalid_argument naming --vignetting.
+  render::Vignetting fall_off() const;
 };
 
 struct InferArgs {
@@ -45,7 +50,6 @@ struct CompositeArgs {
   double aperture = 0, focus = 0;
   std::string light_scale;  // "I=S,I=S": relight after rendering
   bool relight_scene = false;
-  std::string vignetting;   // "R2[,R4]": the lens's calibrated fall-off (render/vignetting.h)
 };
 
 void add_composite_options(CLI::App& cmd, CompositeArgs& args);

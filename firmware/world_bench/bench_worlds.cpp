@@ -17,6 +17,7 @@
 #include "propcam/inference/infer.h"
 #include "propcam/inference/lighting.h"
 #include "propcam/render/depth_mesh.h"
+#include "propcam/render/vignetting.h"
 #include "tools/scene_reference_builder.h"
 #include "worlds/world_metrics.h"
 
@@ -161,7 +162,33 @@ struct Row {
   std::optional<render::CameraMatchOptions> camera = render::CameraMatchOptions{};
   bool truth = false;  // the world's truth stands in for the inference (own and Blender worlds)
   bool panorama = true;  // also measured on the panorama world
+  // Every photo and insertion put through this lens's fall-off, and whether
+  // the composite knows it (the scene inferred with it divided out, the
+  // prop's layer darkened by it) or not.
+  std::optional<render::Vignetting> lens;
+  bool lens_calibrated = false;
 };
+
+// The vignette sweep's lens: corners at exp(-0.5) = 0.61 of the centre, an
+// uncorrected wide lens.
+const render::Vignetting kBenchLens{-0.5, 0.0};
+
+// A world scene's camera files through `lens`: photo and insertion decoded,
+// darkened, and re-encoded to 8 bits as the camera's file would be.
+WorldScene through_lens(const WorldScene& w, const render::Vignetting& lens) {
+  WorldScene out = w;
+  const auto vignetted_display = [&](const cv::Mat& display, cv::Mat* linear) {
+    cv::Mat srgb8, encoded;
+    display.convertTo(srgb8, CV_8UC3, 255.0);
+    srgb8 = capture::linear_to_srgb8(render::vignette_image(capture::srgb8_to_linear(srgb8), lens));
+    if (linear) *linear = capture::srgb8_to_linear(srgb8);
+    srgb8.convertTo(encoded, CV_32FC3, 1.0 / 255.0);
+    return encoded;
+  };
+  out.photo_display = vignetted_display(w.photo_display, &out.photo_linear);
+  out.insertion_display = vignetted_display(w.insertion_display, nullptr);
+  return out;
+}
 
 bool wants_sweep(const std::vector<std::string>& sweeps, const std::string& s) {
   return std::find(sweeps.begin(), sweeps.end(), s) != sweeps.end();
@@ -221,6 +248,20 @@ std::vector<Row> rows_for(const std::vector<std::string>& sweeps, const std::str
     out.push_back({"colour", "light tint free of the photo's cast", [](inference::InferenceOptions& o) {
                      o.lighting.tint_within_photo_cast = false;
                    }});
+  // A lens's fall-off on every photo (and its truth), unknown to the
+  // composite or calibrated.
+  if (wanted("vignette")) {
+    render::CameraMatchOptions calibrated;
+    calibrated.vignetting = kBenchLens;
+    calibrated.vignetting_source = "the bench's lens";
+    out.push_back({"vignette", "lens fall-off (corners 0.61), not known", nullptr, 0, render::CameraMatchOptions{},
+                   false, false, kBenchLens, false});
+    out.push_back({"vignette", "lens fall-off (corners 0.61), calibrated", nullptr, 0, calibrated, false, false,
+                   kBenchLens, true});
+    // The same inference as the calibrated row: what darkening the prop's layer itself gains.
+    out.push_back({"vignette", "lens fall-off (corners 0.61), calibrated, prop not darkened", nullptr, 0,
+                   render::CameraMatchOptions{}, false, false, kBenchLens, true});
+  }
   // The camera match's effects one at a time and none, on the default inference.
   if (wanted("camera")) {
     render::CameraMatchOptions blur_only, noise_only;
@@ -492,6 +533,9 @@ json run_worlds_bench(const WorldsBenchOptions& o) {
   json result_rows = json::array();
   // The default inference of each scene, kept for the rows that change only the composite.
   std::vector<std::pair<inference::SceneModel, double>> default_estimates(scenes.size());
+  // The vignette sweep's inferences, through the lens: known or not.
+  std::vector<std::pair<inference::SceneModel, double>> unknown_lens_estimates(scenes.size()),
+      calibrated_lens_estimates(scenes.size());
   for (const Row& row : rows_for(o.sweeps, panoramas_only_classifier)) {
     json worlds = json::object();
     std::map<std::string, json> per_world;
@@ -499,6 +543,20 @@ json run_worlds_bench(const WorldsBenchOptions& o) {
       const WorldScene& s = scenes[i];
       progress.stage("bench worlds: " + row.label + ", " + s.world + " " + s.name);
       const int spp = row.spp > 0 ? row.spp : o.spp;
+      if (row.lens) {
+        const WorldScene through = through_lens(s, *row.lens);
+        auto& [estimate, seconds] = (row.lens_calibrated ? calibrated_lens_estimates : unknown_lens_estimates)[i];
+        if (estimate.width == 0) {
+          const auto start = Clock::now();
+          const inference::InferenceOptions defaults;
+          const render::Vignetting known = row.lens_calibrated ? *row.lens : render::Vignetting{};
+          estimate = inference::infer_scene(render::devignette(through.photo_linear, known),
+                                            options_for(s, defaults, left_out));
+          seconds = seconds_since(start);
+        }
+        per_world[s.world].push_back(score_world_estimate(through, estimate, seconds, spp, row.camera));
+        continue;
+      }
       if (row.truth) {
         inference::SceneModel truth = s.truth;
         truth.light_source_mask = s.emitters;
@@ -650,7 +708,7 @@ void add_bench_worlds_options(CLI::App& cmd, WorldsBenchArgs& a) {
   cmd.add_option("--own-spp", a.options.own.spp, "Own world: samples per pixel of photos and insertions")->check(CLI::Range(1, 4096));
   cmd.add_option("--panoramas", a.options.panorama.panoramas, "Panorama world: names or EXR files (default: all 26)")->delimiter(',');
   cmd.add_option("--views", a.options.panorama.views_per_panorama, "Panorama world: views per panorama")->check(CLI::PositiveNumber);
-  cmd.add_option("--sweeps", a.sweeps, "Extra rows: comma-separated subset of spp,albedo,grey_world,fit,lights,outdoor_sources,enclosure,geometry,oracle (the true scene),camera (the camera match's effects),colour (the light tint unbounded by the photo's cast)");
+  cmd.add_option("--sweeps", a.sweeps, "Extra rows: comma-separated subset of spp,albedo,grey_world,fit,lights,outdoor_sources,enclosure,geometry,oracle (the true scene),camera (the camera match's effects),colour (the light tint unbounded by the photo's cast),vignette (a lens's fall-off on every photo, unknown and calibrated)");
   cmd.add_option("--plot", a.options.plot_dir, "Write worlds.png (gnuplot) to this folder");
   cmd.add_flag("--json", a.json_out, "Machine-readable output");
 }
@@ -658,7 +716,7 @@ void add_bench_worlds_options(CLI::App& cmd, WorldsBenchArgs& a) {
 int run_bench_worlds_command(WorldsBenchArgs a) {
   a.options.worlds = parse_sweeps(a.worlds, {"own", "blender", "panorama"});
   if (a.options.worlds.empty()) throw std::invalid_argument("--worlds names no world");
-  a.options.sweeps = parse_sweeps(a.sweeps, {"spp", "albedo", "grey_world", "fit", "lights", "outdoor_sources", "enclosure", "geometry", "oracle", "camera", "colour"});
+  a.options.sweeps = parse_sweeps(a.sweeps, {"spp", "albedo", "grey_world", "fit", "lights", "outdoor_sources", "enclosure", "geometry", "oracle", "camera", "colour", "vignette"});
   parse_bench_size(a.own_size, 16, a.options.own.width, a.options.own.height);
   a.options.quiet = a.json_out;
   return report_bench_result(run_worlds_bench(a.options),

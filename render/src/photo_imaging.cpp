@@ -900,6 +900,8 @@ cv::Mat match_camera(const cv::Mat& photo_linear, const cv::Mat& composite_linea
   } else if (const cv::Rect covered = covered_bounds(prop_coverage); covered.empty()) {
     vignette.why = "the prop covers no pixel";
   } else {
+    // What the prop adds, rendered from the scene inferred with the lens
+    // divided out: the lens's fall-off on all of it.
     if (out.data == composite_linear.data) out = out.clone();  // never the caller's buffer
     vignette_prop(photo_linear, out, prop_coverage, options.vignetting);
     rep.vignette_gain = options.vignetting.at_pixel(covered.x + 0.5 * covered.width - 0.5,

@@ -158,6 +158,31 @@ VignettingFit fit_vignetting(const std::vector<cv::Mat>& flat_fields_linear) {
   return fit;
 }
 
+namespace {
+
+// Each pixel times V^power (CV_32FC3).
+cv::Mat scaled_by_gain(const cv::Mat& linear, const Vignetting& vignetting, double power, const char* caller) {
+  if (linear.type() != CV_32FC3) throw std::invalid_argument(std::string(caller) + ": need a CV_32FC3 linear image");
+  cv::Mat out(linear.size(), CV_32FC3);
+  for (int r = 0; r < out.rows; ++r) {
+    const auto* in = linear.ptr<cv::Vec3f>(r);
+    auto* px = out.ptr<cv::Vec3f>(r);
+    for (int c = 0; c < out.cols; ++c)
+      px[c] = in[c] * static_cast<float>(std::pow(vignetting.at_pixel(c, r, out.size()), power));
+  }
+  return out;
+}
+
+}  // namespace
+
+cv::Mat vignette_image(const cv::Mat& linear, const Vignetting& vignetting) {
+  return vignetting.known() ? scaled_by_gain(linear, vignetting, 1.0, "vignette_image") : linear.clone();
+}
+
+cv::Mat devignette(const cv::Mat& photo_linear, const Vignetting& vignetting) {
+  return vignetting.known() ? scaled_by_gain(photo_linear, vignetting, -1.0, "devignette") : photo_linear;
+}
+
 void vignette_prop(const cv::Mat& photo_linear, cv::Mat& composite_linear, const cv::Mat& coverage,
                    const Vignetting& vignetting) {
   if (photo_linear.type() != CV_32FC3 || composite_linear.type() != CV_32FC3 || coverage.type() != CV_32F ||
@@ -170,11 +195,11 @@ void vignette_prop(const cv::Mat& photo_linear, cv::Mat& composite_linear, const
     const auto* photo = photo_linear.ptr<cv::Vec3f>(r);
     auto* px = out.ptr<cv::Vec3f>(r);
     for (int c = 0; c < size.width; ++c) {
-      if (!(m[c] > 0)) continue;
-      const float covered = std::min(1.0f, m[c]);
+      if (!(m[c] > 0) && px[c] == photo[c]) continue;  // neither covered nor changed: exactly the photo
+      const float uncovered = 1.0f - std::clamp(m[c], 0.0f, 1.0f);
       const float gain_less_one = static_cast<float>(vignetting.at_pixel(c, r, size) - 1.0);
-      // The prop's part of the pixel: what the photo's uncovered share does not explain.
-      for (int ch = 0; ch < 3; ++ch) px[c][ch] += gain_less_one * (px[c][ch] - (1.0f - covered) * photo[c][ch]);
+      // The prop's layer: what the photo's uncovered share does not explain.
+      for (int ch = 0; ch < 3; ++ch) px[c][ch] += gain_less_one * (px[c][ch] - uncovered * photo[c][ch]);
     }
   }
 }

@@ -97,13 +97,14 @@ TEST(Vignetting, NoLensGainsOutsideTheirBounds) {
 }
 
 // Known truth: a grey card in a photo through the lens, and a prop of the
-// same grey rendered without the lens. Matched, the prop is the photo.
+// same grey with its shadow rendered from the lens-free scene. Matched, the
+// prop is the photo and the shadow halves the photo's pixels, as the lens
+// would have given them.
 TEST(Vignetting, APropInAVignettedPhotoIsDarkenedAsThePhotoWas) {
   const cv::Mat photo = capture::srgb8_to_linear(capture::linear_to_srgb8(
       cv::Mat(kH, kW, CV_32FC3, cv::Scalar::all(0.4))));  // an 8-bit file's grey, the prop's value
-  cv::Mat vignetted = photo.clone();
-  cv::Mat everywhere(kH, kW, CV_32F, cv::Scalar(1.0f));
-  vignette_prop(cv::Mat::zeros(photo.size(), CV_32FC3), vignetted, everywhere, kLens);
+  const cv::Mat vignetted = vignette_image(photo, kLens);
+  EXPECT_LT(cv::norm(devignette(vignetted, kLens), photo, cv::NORM_INF), 1e-6);
   // The prop: a corner square (a soft edge on its left) of the grey, unvignetted.
   const cv::Rect corner(kW - 120, kH - 100, 120, 100);
   cv::Mat coverage = cv::Mat::zeros(kH, kW, CV_32F);
@@ -115,6 +116,13 @@ TEST(Vignetting, APropInAVignettedPhotoIsDarkenedAsThePhotoWas) {
       const float m = coverage.at<float>(r, c);
       composite.at<cv::Vec3f>(r, c) = m * photo.at<cv::Vec3f>(r, c) + (1 - m) * vignetted.at<cv::Vec3f>(r, c);
     }
+  // Its shadow beside it, from the lens-free scene (the grey halved): the
+  // change, half the lens-free grey, taken from the photo's pixels as
+  // composite_differential does.
+  const cv::Rect shadow(corner.x - 40, corner.y, 40, corner.height);
+  composite(shadow) -= 0.5 * photo(shadow);
+  cv::Mat truth = vignetted.clone();
+  truth(shadow) *= 0.5;
   const PhotoImaging imaging = estimate_photo_imaging(vignetted);  // a clean, edgeless photo: no blur, no noise
   CameraMatchOptions options;
   options.vignetting = kLens;
@@ -126,9 +134,12 @@ TEST(Vignetting, APropInAVignettedPhotoIsDarkenedAsThePhotoWas) {
   EXPECT_TRUE(report.steps[1].applied) << report.steps[1].why;
   EXPECT_NE(report.steps[1].why.find("test lens"), std::string::npos) << report.steps[1].why;
   EXPECT_NEAR(report.vignette_gain, kLens.at_pixel(corner.x + 59.5, corner.y + 49.5, {kW, kH}), 1e-6);
-  EXPECT_LT(cv::norm(matched, vignetted, cv::NORM_INF), 1e-5) << "the prop is darkened as the photo was";
-  EXPECT_GT(cv::norm(composite, vignetted, cv::NORM_INF), 0.1) << "unmatched, it stands out";
-  EXPECT_EQ(cv::norm(matched, composite, cv::NORM_INF, coverage == 0), 0.0) << "the rest is untouched";
+  EXPECT_LT(cv::norm(matched, truth, cv::NORM_INF), 1e-5) << "the prop and its shadow darkened as the photo was";
+  EXPECT_GT(cv::norm(composite(corner), truth(corner), cv::NORM_INF), 0.1) << "unmatched, the prop stands out";
+  EXPECT_GT(cv::norm(composite(shadow), truth(shadow), cv::NORM_INF), 0.02) << "and its shadow is too deep";
+  cv::Mat untouched = coverage == 0;
+  untouched(shadow).setTo(0);
+  EXPECT_EQ(cv::norm(matched, composite, cv::NORM_INF, untouched), 0.0) << "the rest is untouched";
   EXPECT_GT(cv::norm(composite, photo, cv::NORM_INF), 0.0) << "the caller's composite is left as it was";
 
   // Unknown, or a lens no calibration gives: not applied, and said why.

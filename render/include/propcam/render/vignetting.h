@@ -2,8 +2,8 @@
 // frame's corners, known from the camera's calibration (flat-field frames),
 // not from the photo itself: one photo cannot tell a vignette from the
 // scene's own fall-off (docs/camera_match.md, "Vignetting from one photo").
-// The camera match darkens the prop's pixels by it, as the lens darkened the
-// photo around them.
+// The scene is inferred from the photo with it divided out, and the camera
+// match darkens what the prop adds by it, as the lens darkened the photo.
 //
 // Model: V(r) = exp(r2 r^2 + r4 r^4), r the distance from the frame's centre
 // over its half-diagonal (0 at the centre, 1 in the corners). A log-polynomial
@@ -59,12 +59,22 @@ constexpr double kMinFlatFieldUsableShare = 0.8;
 // kMaxFlatFieldResidual).
 VignettingFit fit_vignetting(const std::vector<cv::Mat>& flat_fields_linear);
 
-// The vignette on the prop's pixels, in place: each composite pixel's prop
-// part (its value less the photo's share, (1 - coverage) * photo) is scaled
-// by V at the pixel. Linear images (CV_32FC3) in one space, `coverage`
-// CV_32F in [0, 1]; pixels the prop does not cover keep their exact value.
-// The prop's shadow and bounce light need none: they scale the photo's own
-// pixels, which the lens already darkened.
+// A lens-free image as the lens would have taken it: each pixel times V
+// (CV_32FC3 linear; a known fall-off put on test and bench photos).
+cv::Mat vignette_image(const cv::Mat& linear, const Vignetting& vignetting);
+
+// The photo as a lens without fall-off would have taken it: each pixel
+// divided by V (CV_32FC3 linear). The scene is inferred from this, so that
+// its lights and albedo are the scene's and not the lens's. Unknown
+// vignetting returns the photo itself.
+cv::Mat devignette(const cv::Mat& photo_linear, const Vignetting& vignetting);
+
+// The lens's fall-off on what the prop adds, in place: the prop's layer —
+// each changed pixel's value less the photo's uncovered share,
+// (1 - coverage) * photo: the prop's own radiance and the light its shadow
+// takes or its bounce adds, rendered from the lens-free scene — is scaled by
+// V at the pixel. Linear images (CV_32FC3) in one space, `coverage` CV_32F in
+// [0, 1]; pixels the prop neither covers nor changes keep their exact value.
 void vignette_prop(const cv::Mat& photo_linear, cv::Mat& composite_linear, const cv::Mat& coverage,
                    const Vignetting& vignetting);
 
