@@ -4,6 +4,7 @@
 #include <opencv2/imgproc.hpp>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
 
 #include "luminance.h"
@@ -45,8 +46,11 @@ double Vignetting::at_pixel(double x, double y, cv::Size size) const {
 
 std::string vignetting_problem(const Vignetting& v) {
   if (!std::isfinite(v.r2) || !std::isfinite(v.r4)) return "coefficients must be finite";
-  if (std::abs(v.r2) > kMaxVignettingCoefficient || std::abs(v.r4) > kMaxVignettingCoefficient)
-    return "coefficients must be within +-" + std::to_string(kMaxVignettingCoefficient).substr(0, 3);
+  if (std::abs(v.r2) > kMaxVignettingCoefficient || std::abs(v.r4) > kMaxVignettingCoefficient) {
+    char text[64];
+    std::snprintf(text, sizeof text, "coefficients must be within +-%.1f", kMaxVignettingCoefficient);
+    return text;
+  }
   for (int i = 0; i <= kGainChecks; ++i) {
     const double gain = v.at_radius(static_cast<double>(i) / kGainChecks);
     if (gain < kMinVignetteGain || gain > kMaxVignetteGain) {
@@ -102,9 +106,13 @@ VignettingFit fit_vignetting(const std::vector<cv::Mat>& flat_fields_linear) {
   }
   std::vector<float> values(luminance.begin<float>(), luminance.end<float>());
   std::nth_element(values.begin(), values.begin() + static_cast<long>(values.size() / 2), values.end());
-  if (values[values.size() / 2] < kMinFlatFieldMedian)
-    throw std::invalid_argument("fit_vignetting: the flat field is too dark to read (median luminance below " +
-                                std::to_string(kMinFlatFieldMedian).substr(0, 4) + "): expose it brighter");
+  if (values[values.size() / 2] < kMinFlatFieldMedian) {
+    char text[160];
+    std::snprintf(text, sizeof text,
+                  "fit_vignetting: the flat field is too dark to read (median luminance below %.2f): expose it brighter",
+                  kMinFlatFieldMedian);
+    throw std::invalid_argument(text);
+  }
 
   // Reduced, a reduced pixel counts only when all it averages was usable.
   const double scale = std::min(1.0, static_cast<double>(kFitWidthPx) / size.width);
@@ -160,15 +168,17 @@ VignettingFit fit_vignetting(const std::vector<cv::Mat>& flat_fields_linear) {
 
 namespace {
 
-// Each pixel times V^power (CV_32FC3).
-cv::Mat scaled_by_gain(const cv::Mat& linear, const Vignetting& vignetting, double power, const char* caller) {
+// Each pixel times V, or divided by it (CV_32FC3).
+cv::Mat scaled_by_gain(const cv::Mat& linear, const Vignetting& vignetting, bool divide, const char* caller) {
   if (linear.type() != CV_32FC3) throw std::invalid_argument(std::string(caller) + ": need a CV_32FC3 linear image");
   cv::Mat out(linear.size(), CV_32FC3);
   for (int r = 0; r < out.rows; ++r) {
     const auto* in = linear.ptr<cv::Vec3f>(r);
     auto* px = out.ptr<cv::Vec3f>(r);
-    for (int c = 0; c < out.cols; ++c)
-      px[c] = in[c] * static_cast<float>(std::pow(vignetting.at_pixel(c, r, out.size()), power));
+    for (int c = 0; c < out.cols; ++c) {
+      const double gain = vignetting.at_pixel(c, r, out.size());
+      px[c] = in[c] * static_cast<float>(divide ? 1.0 / gain : gain);
+    }
   }
   return out;
 }
@@ -176,11 +186,11 @@ cv::Mat scaled_by_gain(const cv::Mat& linear, const Vignetting& vignetting, doub
 }  // namespace
 
 cv::Mat vignette_image(const cv::Mat& linear, const Vignetting& vignetting) {
-  return vignetting.known() ? scaled_by_gain(linear, vignetting, 1.0, "vignette_image") : linear.clone();
+  return vignetting.known() ? scaled_by_gain(linear, vignetting, false, "vignette_image") : linear.clone();
 }
 
 cv::Mat devignette(const cv::Mat& photo_linear, const Vignetting& vignetting) {
-  return vignetting.known() ? scaled_by_gain(photo_linear, vignetting, -1.0, "devignette") : photo_linear;
+  return vignetting.known() ? scaled_by_gain(photo_linear, vignetting, true, "devignette") : photo_linear;
 }
 
 void vignette_prop(const cv::Mat& photo_linear, cv::Mat& composite_linear, const cv::Mat& coverage,
