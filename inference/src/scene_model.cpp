@@ -165,8 +165,11 @@ render::PinholeCamera SceneModel::camera() const {
   return cam;
 }
 
-render::LightRig make_light_rig(const std::vector<LightSource>& lights, bool unit_intensity) {
+render::LightRig make_light_rig(const std::vector<LightSource>& lights, bool unit_intensity,
+                                const std::vector<Window>& windows) {
   render::LightRig rig;
+  for (const Window& w : windows)
+    rig.portals.push_back({w.corner.cast<float>(), w.edge_u.cast<float>(), w.edge_v.cast<float>()});
   for (const LightSource& l : lights) {
     const Eigen::Vector3f intensity = unit_intensity ? Eigen::Vector3f::Ones() : Eigen::Vector3f(l.intensity.cast<float>());
     if (l.type == LightSource::Type::Area) {
@@ -180,6 +183,7 @@ render::LightRig make_light_rig(const std::vector<LightSource>& lights, bool uni
       render::SunLight sun;
       sun.direction = l.direction.cast<float>();
       sun.irradiance = intensity;
+      sun.through_portals = l.through_windows;
       rig.suns.push_back(sun);
     } else if (l.type == LightSource::Type::Point) {
       render::SphereLight bulb;
@@ -189,12 +193,13 @@ render::LightRig make_light_rig(const std::vector<LightSource>& lights, bool uni
       rig.sphere_lights.push_back(bulb);
     } else if (l.type == LightSource::Type::Ibl && !l.environment.empty()) {
       rig.environment = std::make_shared<render::EnvironmentLight>(l.environment, intensity);
+      rig.environment->set_through_portals(l.through_windows);
     }
   }
   return rig;
 }
 
-render::LightRig SceneModel::light_rig() const { return make_light_rig(lights); }
+render::LightRig SceneModel::light_rig() const { return make_light_rig(lights, false, windows); }
 
 void SceneModel::validate() const {
   if (width <= 0 || height <= 0) throw std::runtime_error("scene model: no image size");
@@ -217,6 +222,12 @@ void SceneModel::validate() const {
     for (int c = 0; c < 3; ++c) require_in_range(l.intensity[c], kLightIntensityRange, "scene.json light intensity");
     if (l.type == LightSource::Type::Point && !(l.radius >= kMinPointLightRadiusM && l.radius <= kMaxPointLightRadiusM))
       throw std::runtime_error("scene model: a point light's radius must lie in [1e-4, 2] m");
+  }
+  if (windows.size() > kMaxWindows) throw std::runtime_error("scene model: more windows than " + std::to_string(kMaxWindows));
+  for (const Window& w : windows) {
+    const render::Portal portal{w.corner.cast<float>(), w.edge_u.cast<float>(), w.edge_v.cast<float>()};
+    if (!w.corner.allFinite() || !portal.valid())
+      throw std::runtime_error("scene model: a window is not finite or has no area");
   }
   if (!(imaging.blur_sigma_px >= 0 && imaging.blur_sigma_px <= kMaxImagingBlurPx))
     throw std::runtime_error("scene model: the imaging's blur must lie in [0, 8] px");
@@ -280,9 +291,16 @@ void save_scene(const SceneModel& scene, const std::string& folder) {
         break;
       }
     }
+    if (l.through_windows) lj["through_windows"] = true;
     lights.push_back(lj);
   }
   j["lights"] = lights;
+  if (!scene.windows.empty()) {
+    json windows = json::array();
+    for (const Window& w : scene.windows)
+      windows.push_back({{"corner", vec(w.corner)}, {"edge_u", vec(w.edge_u)}, {"edge_v", vec(w.edge_v)}});
+    j["windows"] = windows;
+  }
   json planes = json::array();
   for (const auto& p : scene.planes) {
     json pj = {{"name", p.name}, {"normal", vec(p.normal)}, {"offset", p.offset}};
@@ -364,8 +382,16 @@ SceneModel load_scene(const std::string& folder) {
         if (env.channels() != 3) throw std::runtime_error("environment map must have 3 channels");
         l.environment = env;
       }
+      l.through_windows = lj.value("through_windows", false);
+      if (l.through_windows && l.type != LightSource::Type::Sun && l.type != LightSource::Type::Ibl)
+        throw std::runtime_error("only a sun or an ibl light comes through windows");
       s.lights.push_back(l);
     }
+    const json windows = j.value("windows", json::array());
+    if (!windows.is_array() || windows.size() > kMaxWindows) throw std::runtime_error("bad windows list");
+    for (const json& wj : windows)
+      s.windows.push_back({vec3(wj.at("corner"), "window corner"), vec3(wj.at("edge_u"), "window edge_u"),
+                           vec3(wj.at("edge_v"), "window edge_v")});
     for (const json& pj : j.value("planes", json::array())) {
       SupportPlane p{pj.at("name"), vec3(pj.at("normal"), "normal"), pj.at("offset")};
       if (pj.contains("pixels")) {

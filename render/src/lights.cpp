@@ -445,7 +445,39 @@ LightRig LightRig::only(int index) const {
   else if (index < first_point()) rig.disc_lights.push_back(disc_lights[index - first_disc()]);
   else if (index < environment_index()) rig.point_lights.push_back(point_lights[index - first_point()]);
   else rig.environment = environment;
+  rig.portals = portals;
   return rig;
+}
+
+bool Portal::valid() const {
+  return corner.allFinite() && edge_u.allFinite() && edge_v.allFinite() &&
+         edge_u.cross(edge_v).norm() >= kMinAreaLightArea;
+}
+
+bool Portal::crossed_by(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction) const {
+  if (!valid()) return false;
+  // In double: a window metres away, crossed at a grazing angle.
+  const Eigen::Vector3d o = origin.cast<double>(), d = direction.cast<double>(), c = corner.cast<double>();
+  const Eigen::Vector3d u = edge_u.cast<double>(), v = edge_v.cast<double>();
+  const Eigen::Vector3d n = u.cross(v);
+  const double facing = n.dot(d);
+  if (!(std::abs(facing) > 1e-12 * n.norm() * d.norm())) return false;  // parallel, or not finite
+  const double t = n.dot(c - o) / facing;
+  if (!(t > 0.0)) return false;
+  const Eigen::Vector3d hit = o + t * d - c;
+  // Coordinates along the (possibly skewed) edges, by the Gram system.
+  const double uu = u.dot(u), uv = u.dot(v), vv = v.dot(v), hu = hit.dot(u), hv = hit.dot(v);
+  const double det = uu * vv - uv * uv;
+  const double s = (hu * vv - hv * uv) / det, r = (hv * uu - hu * uv) / det;
+  return s >= 0.0 && s <= 1.0 && r >= 0.0 && r <= 1.0;
+}
+
+bool LightRig::arrives_from_outside(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction,
+                                    bool through_portals) const {
+  if (!through_portals) return true;
+  for (const Portal& portal : portals)
+    if (portal.crossed_by(origin, direction)) return true;
+  return false;
 }
 
 }  // namespace propcam::render

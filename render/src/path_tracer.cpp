@@ -271,11 +271,13 @@ class PathIntegrator {
     index = lights_.first_sun();
     for (const SunLight& sun : lights_.suns) {
       const float p = sun.pdf(direction);
-      if (p > 0.f && seen(sun.visible_to_camera)) add(index, sun.radiance() * weight(p));
+      if (p > 0.f && seen(sun.visible_to_camera) && lights_.arrives_from_outside(origin, direction, sun.through_portals))
+        add(index, sun.radiance() * weight(p));
       ++index;
     }
     const EnvironmentLight* environment = lights_.environment.get();
-    if (environment && seen(environment->visible_to_camera()))
+    if (environment && seen(environment->visible_to_camera()) &&
+        lights_.arrives_from_outside(origin, direction, environment->through_portals()))
       add(lights_.environment_index(), environment->radiance(direction) * weight(environment->pdf(direction)));
   }
 
@@ -335,9 +337,14 @@ class PathIntegrator {
       if (light.prop_only && arriving.maxCoeff() > 0.f) result.touched_prop = true;
       add(index++, arriving);
     }
+    // Light from outside enters a room only through its windows (portals).
+    const auto through_windows = [&](LightSample ls, bool through_portals) {
+      if (!lights_.arrives_from_outside(sp.position, ls.direction, through_portals)) ls.pdf = 0.f;
+      return ls;
+    };
     for (const SunLight& sun : lights_.suns) {
       const Eigen::Vector2f u = sampler.get2d();
-      add(index++, connect(sun.sample(u.x(), u.y())));
+      add(index++, connect(through_windows(sun.sample(u.x(), u.y()), sun.through_portals)));
     }
     for (const DiscLight& light : lights_.disc_lights) {
       const Eigen::Vector2f u = sampler.get2d();
@@ -353,7 +360,7 @@ class PathIntegrator {
       ls.direction = lights_.environment->sample(u.x(), u.y(), ls.pdf);
       ls.distance = kInfinity;
       ls.radiance = lights_.environment->radiance(ls.direction);
-      add(index, connect(ls));
+      add(index, connect(through_windows(ls, lights_.environment->through_portals())));
     }
     if (sample_emissive_) {
       // One emissive triangle, picked by what it may deliver here (the light BVH).

@@ -156,6 +156,7 @@ void prune_lights(const LightRig& lights, const PlanOptions& options, bool have_
   for (const PointLight& l : lights.point_lights)
     if (keep(index++)) plan.lights.point_lights.push_back(l);
   if (lights.environment && keep(index++)) plan.lights.environment = lights.environment;
+  plan.lights.portals = lights.portals;
 }
 
 // Glossy paths: only materials that need them have them; say which.

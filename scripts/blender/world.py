@@ -29,6 +29,7 @@ from mathutils import Matrix, Vector  # noqa: E402
 import bcommon  # noqa: E402
 import exrio  # noqa: E402
 import scenes  # noqa: E402
+import truth_windows  # noqa: E402
 import units  # noqa: E402
 
 VERSION = "propcam-blender-world/1"
@@ -436,6 +437,8 @@ def main():
         "indoor": bool(sc.indoor), "source_photo": "photo" + ext, "lights": lights,
         "planes": [{"name": placement["support"], "normal": [0.0, 1.0, 0.0], "offset": -float(sy)}],
         "reports": []}
+    truth_windows.add_windows(scene_json, {"indoor": sc.indoor, "portals": sc.portals,
+                                           "truth_world_shift": (-shift).tolist()})
     with open(os.path.join(out, "truth", "scene.json"), "w") as f:
         json.dump(scene_json, f, indent=1)
     # the truth lists the photo file relative to the scene folder's parent

@@ -151,5 +151,41 @@ TEST_F(SceneJsonHardCases, ThePhotosImagingRoundTripsAndIsBounded) {
             std::string::npos);
 }
 
+// A room's windows and the lights that come through them travel in
+// scene.json and reach the renderer's rig; a window without area or with a
+// non-finite corner, too many windows, or a room light marked as coming
+// through them are refused.
+TEST_F(SceneJsonHardCases, WindowsRoundTripAndReachTheRig) {
+  const std::string window = R"({"corner": [0, 1, 3], "edge_u": [1, 0, 0], "edge_v": [0, 1, 0]})";
+  const std::string sun = R"({"type": "sun", "intensity": [5, 5, 5], "direction": [0, 1, 1], "through_windows": true})";
+  const auto with_windows = [&](const std::string& light, const std::string& windows) {
+    const std::string base = scene_json(R"("width": 64, "height": 48)", light);
+    return base.substr(0, base.size() - 1) + R"(, "windows": [)" + windows + "]}";
+  };
+  const SceneModel scene = load(with_windows(sun, window));
+  ASSERT_EQ(scene.windows.size(), 1u);
+  EXPECT_TRUE(scene.lights.at(0).through_windows);
+  const render::LightRig rig = scene.light_rig();
+  ASSERT_EQ(rig.portals.size(), 1u);
+  EXPECT_TRUE(rig.suns.at(0).through_portals);
+  EXPECT_TRUE(rig.arrives_from_outside({0.5f, 1.5f, 0.f}, {0.f, 0.f, 1.f}, true));
+  save_scene(scene, (dir_ / "again").string());
+  const SceneModel back = load_scene((dir_ / "again").string());
+  ASSERT_EQ(back.windows.size(), 1u);
+  EXPECT_EQ(back.windows[0].edge_v, scene.windows[0].edge_v);
+  EXPECT_TRUE(back.lights.at(0).through_windows);
+  EXPECT_TRUE(load(scene_json()).windows.empty()) << "a scene without windows lets light in everywhere";
+
+  EXPECT_NE(error_of(with_windows(sun, R"({"corner": [0, 1, 3], "edge_u": [1, 0, 0], "edge_v": [2, 0, 0]})"))
+                .find("window"), std::string::npos);
+  EXPECT_NE(error_of(with_windows(sun, R"({"corner": [1e300, 1, 3], "edge_u": [1, 0, 0], "edge_v": [0, 1, 0]})"))
+                .find("window"), std::string::npos);
+  std::string many = window;
+  for (size_t i = 0; i < kMaxWindows; ++i) many += "," + window;
+  EXPECT_NE(error_of(with_windows(sun, many)).find("windows"), std::string::npos);
+  EXPECT_NE(error_of(with_windows(R"({"type": "point", "intensity": [1, 1, 1], "through_windows": true})", window))
+                .find("through windows"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace propcam::inference

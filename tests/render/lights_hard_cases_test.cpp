@@ -191,5 +191,40 @@ TEST(LightsHardCases, DegenerateNewLightsRenderFinite) {
   for (const cv::Mat& layer : layers) EXPECT_TRUE(cv::checkRange(layer));
 }
 
+// A portal is crossed only at t > 0 inside its parallelogram; a flat,
+// non-finite or edge-on window lets nothing through, and a rig whose
+// outside light needs a window it does not have receives none.
+TEST(LightsHardCases, PortalsLetThroughOnlyTheRaysThatCrossThem) {
+  Portal window;
+  window.corner = {0.f, 2.f, 0.f};
+  window.edge_u = {1.f, 0.f, 0.f};
+  window.edge_v = {0.f, 0.f, 1.f};
+  const Eigen::Vector3f up = Eigen::Vector3f::UnitY();
+  EXPECT_TRUE(window.crossed_by({0.5f, 0.f, 0.5f}, up));
+  EXPECT_TRUE(window.crossed_by({0.5f, 3.f, 0.5f}, -up));          // from the other side
+  EXPECT_FALSE(window.crossed_by({0.5f, 0.f, 0.5f}, -up));         // behind the ray
+  EXPECT_FALSE(window.crossed_by({1.5f, 0.f, 0.5f}, up));          // beside it
+  EXPECT_FALSE(window.crossed_by({0.5f, 2.f, 0.5f}, {1.f, 0.f, 0.f}));  // in its plane
+  EXPECT_FALSE(window.crossed_by({0.5f, 0.f, 0.5f}, {std::nanf(""), 1.f, 0.f}));
+  EXPECT_FALSE(window.crossed_by({0.5f, 0.f, 0.5f}, Eigen::Vector3f::Zero()));
+  Portal flat = window;
+  flat.edge_v = {2.f, 0.f, 0.f};  // parallel edges: no area
+  EXPECT_FALSE(flat.valid());
+  EXPECT_FALSE(flat.crossed_by({0.5f, 0.f, 0.f}, up));
+  Portal nowhere = window;
+  nowhere.corner = {std::numeric_limits<float>::infinity(), 2.f, 0.f};
+  EXPECT_FALSE(nowhere.valid());
+  EXPECT_FALSE(nowhere.crossed_by({0.5f, 0.f, 0.5f}, up));
+
+  LightRig rig;
+  EXPECT_TRUE(rig.arrives_from_outside({0.5f, 0.f, 0.5f}, up, false));
+  EXPECT_FALSE(rig.arrives_from_outside({0.5f, 0.f, 0.5f}, up, true));
+  rig.portals = {flat, window};
+  EXPECT_TRUE(rig.arrives_from_outside({0.5f, 0.f, 0.5f}, up, true));
+  EXPECT_FALSE(rig.arrives_from_outside({-0.5f, 0.f, 0.5f}, up, true));
+  rig.suns.push_back(SunLight{});
+  EXPECT_EQ(rig.only(0).portals.size(), 2u);
+}
+
 }  // namespace
 }  // namespace propcam::render

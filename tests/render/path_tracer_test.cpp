@@ -225,6 +225,72 @@ TEST(PathTracer, SunIrradianceIsIntensityTimesCosine) {
   }
 }
 
+// A sun from outside a room shines only through its window: straight down
+// through a 1 m square 2 m above the floor it lights that square of the
+// floor, E / pi, and nothing beside it; with no window it reaches nothing.
+TEST(PathTracer, ASunThroughAWindowLightsOnlyTheFloorBelowIt) {
+  const auto scene = floor_scene(material(Material::Type::Diffuse, 1.f));
+  PinholeCamera cam = looking_down(32, 4.0);
+  cam.fx = cam.fy = 16;  // the floor from -4 to 4 m
+  LightRig lights;
+  SunLight sun;
+  sun.irradiance = Eigen::Vector3f::Constant(3.f);
+  sun.through_portals = true;
+  lights.suns.push_back(sun);
+  RenderSettings settings;
+  settings.samples_per_pixel = 8;
+  settings.max_bounces = 1;
+  EXPECT_EQ(cv::norm(render_image(*scene, cam, lights, settings), cv::NORM_INF), 0.0);
+
+  lights.portals.push_back({Eigen::Vector3f(0.f, 2.f, 0.f), Eigen::Vector3f(1.f, 0.f, 0.f), Eigen::Vector3f(0.f, 0.f, 1.f)});
+  const cv::Mat image = render_image(*scene, cam, lights, settings);
+  ASSERT_TRUE(cv::checkRange(image));
+  int lit = 0, dark = 0;
+  for (int y = 0; y < cam.height; ++y)
+    for (int x = 0; x < cam.width; ++x) {
+      // The floor point this pixel sees (x toward +X, y toward +Z).
+      const double fx = (x - cam.cx) / cam.fx * 4.0, fz = (y - cam.cy) / cam.fy * 4.0;
+      const double value = image.at<cv::Vec3f>(y, x)[0];
+      const double margin = 0.2;  // a pixel's footprint is 0.25 m
+      if (fx > margin && fx < 1 - margin && fz > margin && fz < 1 - margin) {
+        EXPECT_NEAR(value, 3.0 / std::numbers::pi, 3.0 / std::numbers::pi * kRenderTolerance) << x << "," << y;
+        ++lit;
+      } else if (fx < -margin || fx > 1 + margin || fz < -margin || fz > 1 + margin) {
+        EXPECT_EQ(value, 0.0) << x << "," << y;
+        ++dark;
+      }
+    }
+  EXPECT_GT(lit, 0);
+  EXPECT_GT(dark, 0);
+}
+
+// A uniform sky through a window is, for the room, an area light of the
+// sky's radiance filling it: the floor below receives the same irradiance.
+TEST(PathTracer, TheSkyThroughAWindowIsAnAreaLightOfTheSkysRadiance) {
+  const auto scene = floor_scene(material(Material::Type::Diffuse, 1.f));
+  const Eigen::Vector3f corner(-0.6f, 2.f, -0.4f), edge_u(1.2f, 0.f, 0.f), edge_v(0.f, 0.f, 0.8f);
+  LightRig through_window;
+  through_window.environment = uniform_sky(2.f);
+  through_window.environment->set_through_portals(true);
+  through_window.portals.push_back({corner, edge_u, edge_v});
+  LightRig area;
+  AreaLight panel;
+  panel.corner = corner;
+  panel.edge_u = edge_u;  // edge_u x edge_v faces down, toward the floor
+  panel.edge_v = edge_v;
+  panel.radiance = Eigen::Vector3f::Constant(2.f);
+  area.area_lights.push_back(panel);
+  RenderSettings settings;
+  settings.samples_per_pixel = 256;
+  settings.max_bounces = 1;
+  const double sky = cv::mean(render_image(*scene, patch_camera(), through_window, settings))[0];
+  const double quad = cv::mean(render_image(*scene, patch_camera(), area, settings))[0];
+  EXPECT_GT(quad, 0.1);
+  EXPECT_NEAR(sky, quad, quad * 0.05);
+  // The open sky would give 2 (the white furnace): the window lets in a part.
+  EXPECT_LT(sky, 1.0);
+}
+
 // A sun at the horizon (its disc partly below it) on every material: finite, tiny, never NaN.
 TEST(PathTracer, GrazingSunStaysFinite) {
   for (const Material& m : {material(Material::Type::Diffuse, 1.f), material(Material::Type::Plastic, 0.f),

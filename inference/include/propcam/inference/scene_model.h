@@ -48,7 +48,19 @@ struct LightSource {
                   edge_v = Eigen::Vector3d::Zero();
   cv::Mat environment;  // Ibl: equirectangular CV_32FC3, unit scale
   std::string file;     // Ibl: file name inside the scene folder
+  // Sun, Ibl: light from outside a room, which reaches it only through the
+  // scene's windows (SceneModel::windows).
+  bool through_windows = false;
 };
+
+// An opening in a room's walls, which the scene does not hold as geometry:
+// the parallelogram corner + s*edge_u + t*edge_v (world), s,t in [0,1].
+struct Window {
+  Eigen::Vector3d corner = Eigen::Vector3d::Zero(), edge_u = Eigen::Vector3d::Zero(),
+                  edge_v = Eigen::Vector3d::Zero();
+};
+// At most this many windows in a scene file.
+constexpr size_t kMaxWindows = 64;
 
 const char* to_string(LightSource::Type type);
 
@@ -91,6 +103,8 @@ struct SceneModel {
   // (in memory only: benches score it; the folder does not keep it).
   cv::Mat light_source_mask;
   std::vector<LightSource> lights;
+  // Where the lights marked `through_windows` enter (render::Portal).
+  std::vector<Window> windows;
   std::vector<SupportPlane> planes;
   // Outdoors: the seen facades continued out of the frame, occluders for the
   // lights (hidden_facades.h); the compositor adds them as the lighting did.
@@ -111,8 +125,10 @@ struct SceneModel {
 };
 
 // The renderer's view of a list of lights: area quads, then at most one
-// environment. With `unit_intensity` every light gets intensity 1 (basis renders).
-render::LightRig make_light_rig(const std::vector<LightSource>& lights, bool unit_intensity = false);
+// environment, the windows as the rig's portals. With `unit_intensity`
+// every light gets intensity 1 (basis renders).
+render::LightRig make_light_rig(const std::vector<LightSource>& lights, bool unit_intensity = false,
+                                const std::vector<Window>& windows = {});
 
 void save_scene(const SceneModel& scene, const std::string& folder);
 SceneModel load_scene(const std::string& folder);

@@ -160,6 +160,9 @@ struct SunLight {
   double angular_radius = kSunAngularRadiusDeg * std::numbers::pi / 180.0;  // radians
   Eigen::Vector3f irradiance = Eigen::Vector3f::Ones();  // W/m^2 normal to `direction`
   bool visible_to_camera = true;
+  // Light from outside a room: it arrives only along rays that cross one of
+  // the rig's portals (its windows).
+  bool through_portals = false;
 
   bool emits() const;
   Eigen::Vector3f radiance() const;
@@ -187,6 +190,10 @@ class EnvironmentLight {
   // False: camera rays that escape see black; it still lights the scene.
   bool visible_to_camera() const { return visible_to_camera_; }
   void set_visible_to_camera(bool visible) { visible_to_camera_ = visible; }
+  // Light from outside a room: it arrives only along rays that cross one of
+  // the rig's portals (its windows).
+  bool through_portals() const { return through_portals_; }
+  void set_through_portals(bool through) { through_portals_ = through; }
 
   // 0 for a non-finite direction.
   Eigen::Vector3f radiance(const Eigen::Vector3f& direction) const;
@@ -205,6 +212,25 @@ class EnvironmentLight {
   std::vector<float> row_weight_;
   float total_weight_ = 0.f;
   bool visible_to_camera_ = true;
+  bool through_portals_ = false;
+};
+
+// A window in walls the scene does not hold: the parallelogram corner +
+// s*edge_u + t*edge_v, s,t in [0,1], crossed from either side. A room's
+// walls out of view are not geometry, so a sun or sky marked
+// `through_portals` would otherwise reach everything in it from every
+// direction; with portals it reaches a point only through its windows, as
+// in the room. The lights are still sampled over their whole extent: a
+// small window is found by few of the sky's samples (noisier, not biased).
+struct Portal {
+  Eigen::Vector3f corner = Eigen::Vector3f::Zero();
+  Eigen::Vector3f edge_u = Eigen::Vector3f::UnitX();
+  Eigen::Vector3f edge_v = Eigen::Vector3f::UnitY();
+
+  // Finite corners and an area of at least kMinAreaLightArea.
+  bool valid() const;
+  // The ray origin + t*direction crosses the parallelogram at some t > 0.
+  bool crossed_by(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction) const;
 };
 
 // Every light of a scene. Lights are indexed in this order: area lights,
@@ -220,6 +246,9 @@ struct LightRig {
   std::vector<DiscLight> disc_lights;
   std::vector<PointLight> point_lights;
   std::shared_ptr<EnvironmentLight> environment;  // may be null
+  // The windows that suns and an environment marked `through_portals` shine
+  // through; such a light with no portal reaches nothing.
+  std::vector<Portal> portals;
 
   // Index of the first light of each kind.
   int first_sphere() const { return static_cast<int>(area_lights.size()); }
@@ -228,8 +257,13 @@ struct LightRig {
   int first_point() const { return first_disc() + static_cast<int>(disc_lights.size()); }
   int environment_index() const { return first_point() + static_cast<int>(point_lights.size()); }
   int count() const { return environment_index() + (environment ? 1 : 0); }
-  // A rig holding only light `index`; throws std::out_of_range.
+  // A rig holding only light `index` (and the portals); throws std::out_of_range.
   LightRig only(int index) const;
+  // Whether light from outside reaches `origin` along `direction` (toward
+  // the light): always when `through_portals` is false, else when the ray
+  // crosses a portal.
+  bool arrives_from_outside(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction,
+                            bool through_portals) const;
 };
 
 }  // namespace propcam::render
