@@ -86,13 +86,14 @@ LightAtPoint light_at(const render::LightRig& rig, const Vector3f& p) {
   for (const auto& sun : rig.suns) {
     if (!sun.emits()) continue;
     const Vector3f d = sun.direction.normalized();
-    add(d, sun.irradiance, 1.0, 1.0);
+    if (rig.arrives_from_outside(p, d, sun.through_portals)) add(d, sun.irradiance, 1.0, 1.0);
   }
   if (rig.environment && rig.environment->valid())
     for (int i = 0; i < kLightVectorSamples; ++i) {
       float pdf = 0.f;
       const Vector3f d = rig.environment->sample(u(rng), u(rng), pdf);
-      add(d, rig.environment->radiance(d), pdf, w);
+      if (rig.arrives_from_outside(p, d, rig.environment->through_portals()))
+        add(d, rig.environment->radiance(d), pdf, w);
     }
   return out;
 }

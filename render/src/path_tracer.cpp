@@ -13,6 +13,7 @@
 #include "bsdf.h"
 #include "emissive_lights.h"
 #include "light_stand_ins.h"
+#include "portal_sampler.h"
 #include "sampler.h"
 #include "sampling.h"
 
@@ -89,6 +90,8 @@ class PathIntegrator {
         caustics_(settings.caustics),
         prop_interreflection_(settings.prop_interreflection),
         area_samplers_(lights.area_lights.begin(), lights.area_lights.end()),
+        portals_(lights.portals),
+        sky_through_portals_(lights.environment && lights.environment->through_portals() && !portals_.empty()),
         emissive_(scene.emissive_lights()),
         sample_emissive_(!emissive_.empty() && !detail::rig_stands_for_every_emitter(lights, emissive_)) {}
 
@@ -277,8 +280,10 @@ class PathIntegrator {
     }
     const EnvironmentLight* environment = lights_.environment.get();
     if (environment && seen(environment->visible_to_camera()) &&
-        lights_.arrives_from_outside(origin, direction, environment->through_portals()))
-      add(lights_.environment_index(), environment->radiance(direction) * weight(environment->pdf(direction)));
+        lights_.arrives_from_outside(origin, direction, environment->through_portals())) {
+      const float p = sky_through_portals_ ? portals_.pdf(origin, direction) : environment->pdf(direction);
+      add(lights_.environment_index(), environment->radiance(direction) * weight(p));
+    }
   }
 
   // Next-event estimation: one sample toward every light of the rig and one
@@ -357,7 +362,8 @@ class PathIntegrator {
     if (lights_.environment) {
       const Eigen::Vector2f u = sampler.get2d();
       LightSample ls;
-      ls.direction = lights_.environment->sample(u.x(), u.y(), ls.pdf);
+      if (sky_through_portals_) ls = portals_.sample(sp.position, u.x(), u.y());
+      else ls.direction = lights_.environment->sample(u.x(), u.y(), ls.pdf);
       ls.distance = kInfinity;
       ls.radiance = lights_.environment->radiance(ls.direction);
       add(index, connect(through_windows(ls, lights_.environment->through_portals())));
@@ -390,6 +396,8 @@ class PathIntegrator {
   bool caustics_;
   bool prop_interreflection_;
   std::vector<detail::AreaLightSampler> area_samplers_;  // lights_.area_lights, derived once
+  detail::PortalSampler portals_;                        // lights_.portals
+  bool sky_through_portals_;  // the environment is sampled through the windows
   const detail::EmissiveLights& emissive_;
   bool sample_emissive_;
 };

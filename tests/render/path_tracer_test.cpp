@@ -289,6 +289,21 @@ TEST(PathTracer, TheSkyThroughAWindowIsAnAreaLightOfTheSkysRadiance) {
   EXPECT_NEAR(sky, quad, quad * 0.05);
   // The open sky would give 2 (the white furnace): the window lets in a part.
   EXPECT_LT(sky, 1.0);
+
+  // Sampled through the window, the sky converges as the area light does:
+  // at 16 spp its pixels stray from the converged floor no more than the
+  // area light's (sampled over the whole sphere, about 200x as far).
+  settings.samples_per_pixel = 16;
+  const auto stray = [&](const LightRig& lights) {
+    PinholeCamera wide = looking_down(32, 1.0);
+    wide.fx = wide.fy = 64;
+    const cv::Mat image = render_image(*scene, wide, lights, settings);
+    RenderSettings converged = settings;
+    converged.samples_per_pixel = 1024;
+    static const cv::Mat reference = render_image(*scene, wide, area, converged);
+    return cv::norm(image, reference, cv::NORM_L2) / std::sqrt(static_cast<double>(image.total()));
+  };
+  EXPECT_LT(stray(through_window), 1.5 * stray(area));
 }
 
 // A sun at the horizon (its disc partly below it) on every material: finite, tiny, never NaN.
