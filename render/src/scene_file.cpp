@@ -261,8 +261,17 @@ double light_radius(const Reader& r, const json& j, const std::string& f, bool z
   return radius;
 }
 
-void read_area(const Reader& r, const json& j, const std::string& f, LightRig& rig) {
-  r.only_fields(j, f, {"type", "position", "normal", "size", "rotation_deg", "intensity", "visible_to_camera", "name"});
+bool through_portals(const Reader& r, const json& j, const std::string& f) {
+  const json* v = Reader::optional(j, "through_portals");
+  return v ? r.boolean(*v, f + ".through_portals") : false;
+}
+
+struct Quad {
+  Vector3f corner, edge_u, edge_v;
+};
+
+// A rectangle given by its centre, facing side and size (area lights, portals).
+Quad read_quad(const Reader& r, const json& j, const std::string& f) {
   const Vector3d position = r.vec3(r.required(j, f, "position"), f + ".position");
   const Vector3d n = r.direction(r.required(j, f, "normal"), f + ".normal");
   const Eigen::VectorXd size = r.numbers(r.required(j, f, "size"), f + ".size", 2);
@@ -279,10 +288,17 @@ void read_area(const Reader& r, const json& j, const std::string& f, LightRig& r
   const Vector3d b0 = n.cross(t);
   const Vector3d u = std::cos(turn) * t + std::sin(turn) * b0;
   const Vector3d v = n.cross(u);
+  return {(position - 0.5 * size[0] * u - 0.5 * size[1] * v).cast<float>(), (size[0] * u).cast<float>(),
+          (size[1] * v).cast<float>()};
+}
+
+void read_area(const Reader& r, const json& j, const std::string& f, LightRig& rig) {
+  r.only_fields(j, f, {"type", "position", "normal", "size", "rotation_deg", "intensity", "visible_to_camera", "name"});
+  const Quad quad = read_quad(r, j, f);
   AreaLight light;
-  light.edge_u = (size[0] * u).cast<float>();
-  light.edge_v = (size[1] * v).cast<float>();
-  light.corner = (position - 0.5 * size[0] * u - 0.5 * size[1] * v).cast<float>();
+  light.corner = quad.corner;
+  light.edge_u = quad.edge_u;
+  light.edge_v = quad.edge_v;
   light.radiance = r.rgb(r.required(j, f, "intensity"), f + ".intensity", 0.0, kMaxIntensity);
   light.visible_to_camera = visible_to_camera(r, j, f);
   rig.area_lights.push_back(light);
@@ -352,7 +368,7 @@ void read_spot(const Reader& r, const json& j, const std::string& f, LightRig& r
 }
 
 void read_sun(const Reader& r, const json& j, const std::string& f, LightRig& rig) {
-  r.only_fields(j, f, {"type", "direction", "intensity", "angle_deg", "visible_to_camera", "name"});
+  r.only_fields(j, f, {"type", "direction", "intensity", "angle_deg", "visible_to_camera", "through_portals", "name"});
   SunLight sun;
   sun.direction = r.direction(r.required(j, f, "direction"), f + ".direction").cast<float>();
   sun.irradiance = r.rgb(r.required(j, f, "intensity"), f + ".intensity", 0.0, kMaxIntensity);
@@ -360,11 +376,12 @@ void read_sun(const Reader& r, const json& j, const std::string& f, LightRig& ri
   if (const json* v = Reader::optional(j, "angle_deg")) angle = r.number(*v, f + ".angle_deg", 0.0, kMaxSunAngleDeg);
   sun.angular_radius = angle * std::numbers::pi / 180.0;
   sun.visible_to_camera = visible_to_camera(r, j, f);
+  sun.through_portals = through_portals(r, j, f);
   rig.suns.push_back(sun);
 }
 
 void read_ibl(const Reader& r, const json& j, const std::string& f, LightRig& rig) {
-  r.only_fields(j, f, {"type", "file", "intensity", "visible_to_camera", "name"});
+  r.only_fields(j, f, {"type", "file", "intensity", "visible_to_camera", "through_portals", "name"});
   if (rig.environment) r.fail(f, "a scene holds one ibl light");
   const std::string path = r.file(r.required(j, f, "file"), f + ".file");
   const Vector3f scale = j.contains("intensity") ? r.rgb(j["intensity"], f + ".intensity", 0.0, kMaxIntensity)
@@ -378,6 +395,15 @@ void read_ibl(const Reader& r, const json& j, const std::string& f, LightRig& ri
   }
   rig.environment = std::make_shared<EnvironmentLight>(image, scale);
   rig.environment->set_visible_to_camera(visible);
+  rig.environment->set_through_portals(through_portals(r, j, f));
+}
+
+void read_portal(const Reader& r, const json& j, const std::string& f, LightRig& rig) {
+  r.only_fields(j, f, {"position", "normal", "size", "rotation_deg", "name"});
+  const Quad quad = read_quad(r, j, f);
+  const Portal portal{quad.corner, quad.edge_u, quad.edge_v};
+  if (!portal.valid()) r.fail(f + ".size", "a portal needs an area of at least " + std::to_string(kMinAreaLightArea) + " m^2");
+  rig.portals.push_back(portal);
 }
 
 void read_light(const Reader& r, const json& j, const std::string& f, LightRig& rig) {
@@ -404,7 +430,7 @@ SceneFile load_scene_file(const std::string& path) {
   } catch (const json::exception& e) {
     throw std::runtime_error("scene file '" + path + "': invalid JSON: " + e.what());
   }
-  r.only_fields(root, "", {"camera", "meshes", "lights"});
+  r.only_fields(root, "", {"camera", "meshes", "lights", "portals"});
   SceneFile out;
   out.path = path;
   out.camera = read_camera(r, r.required(root, "", "camera"));
@@ -412,6 +438,10 @@ SceneFile load_scene_file(const std::string& path) {
   for (size_t i = 0; i < meshes.size(); ++i) out.meshes.push_back(read_mesh(r, meshes[i], Reader::index("meshes", i)));
   const json& lights = r.array(r.required(root, "", "lights"), "lights");
   for (size_t i = 0; i < lights.size(); ++i) read_light(r, lights[i], Reader::index("lights", i), out.lights);
+  if (const json* portals = Reader::optional(root, "portals")) {
+    const json& list = r.array(*portals, "portals");
+    for (size_t i = 0; i < list.size(); ++i) read_portal(r, list[i], Reader::index("portals", i), out.lights);
+  }
   return out;
 }
 

@@ -156,6 +156,32 @@ TEST(SceneFile, EnvironmentFromAnExrNextToTheScene) {
   expect_error(write_scene(folder, scene), {"lights[4]", "one ibl"});
 }
 
+// A room's windows: `portals` (rectangles as area lights are given), and a
+// sun or sky marked `through_portals` that reaches the floor only through
+// them; a portal without area is an error naming it.
+TEST(SceneFile, PortalsAndTheLightsThatComeThroughThem) {
+  const fs::path folder = test_folder();
+  json scene = valid_scene();
+  scene["lights"] = json::parse(R"([{"type": "sun", "direction": [0, 1, 0], "intensity": [2, 2, 2], "through_portals": true}])");
+  scene["portals"] = json::parse(R"([{"position": [0, 1, 0], "normal": [0, -1, 0], "size": [0.5, 0.5]}])");
+  const SceneFile file = load_scene_file(write_scene(folder, scene).string());
+  ASSERT_EQ(file.lights.portals.size(), 1u);
+  EXPECT_TRUE(file.lights.suns.at(0).through_portals);
+  EXPECT_TRUE(file.lights.arrives_from_outside({0.f, 0.f, 0.f}, Eigen::Vector3f::UnitY(), true));
+  EXPECT_FALSE(file.lights.arrives_from_outside({0.5f, 0.f, 0.f}, Eigen::Vector3f::UnitY(), true));
+  // The camera 2 m up looks down on the quad: lit only under the 0.5 m window.
+  const auto built = build_scene(file);
+  RenderSettings settings;
+  settings.samples_per_pixel = 4;
+  const cv::Mat image = render_image(*built, file.camera, file.lights, settings);
+  EXPECT_GT(image.at<cv::Vec3f>(5, 7)[0], 0.1f);  // the middle of the floor
+  EXPECT_EQ(image.at<cv::Vec3f>(0, 0)[0], 0.f);   // a corner, beside the window's light
+  scene["portals"][0]["size"] = {0.5, 0};
+  expect_error(write_scene(folder, scene), {"portals[0].size", "area"});
+  scene["portals"] = json::parse(R"([{"position": [0, 1, 0], "normal": [0, -1, 0], "size": [1, 1], "colour": 1}])");
+  expect_error(write_scene(folder, scene), {"portals[0].colour", "unknown field"});
+}
+
 // The newer light kinds and fields: spot (a sphere, or with radius 0 a
 // point, in a cone), point, disc, a rectangle turned about its normal, and
 // visible_to_camera on every light; rig order area, sphere, sun, disc, point.
