@@ -4,7 +4,7 @@
 #
 #   scripts/make_blender_world.sh --out DIR [--count N] [--size WxH] [--spp N]
 #       [--max-spp M] [--noise-target L] [--seed S] [--threads T] [--probe-spp N]
-#       [--noise-check K] [--only-missing] [--held-only]
+#       [--noise-check K] [--only-missing] [--held-only] [--indoor-plan PLAN]
 #
 # Works from a fresh clone after `bash scripts/setup.sh` and a release build
 # (build/release/firmware/propcam): it exports the preset props with
@@ -18,11 +18,14 @@
 # (--spp N --max-spp N: always N), a 4x-spp noise check on the first 3 scenes.
 # --held-only renders only the held split's seeds (multiples of 3): a fresh
 # held set above seed 66 judges a change chosen after the first one was seen.
+# --indoor-plan (ceiling|lamps|window_sun|window_overcast|offscreen|dim|mixed)
+# gives every indoor scene that light plan (for a study of one kind of light;
+# every other choice of the seed stays as it was); outdoor seeds are skipped.
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 root="$(cd "$here/.." && pwd)"
 out="" count=66 size=320x240 spp=128 max_spp=256 noise_target=3 seed=1 threads=2 probe_spp=256 noise_check=3
-only_missing=0 held_only=0
+only_missing=0 held_only=0 indoor_plan=""
 propcam="${PROPCAM:-$root/build/release/firmware/propcam}"
 while [[ $# -gt 0 ]]; do
   case "$1" in
@@ -38,7 +41,8 @@ while [[ $# -gt 0 ]]; do
     --noise-check) noise_check="$2"; shift 2 ;;
     --only-missing) only_missing=1; shift ;;
     --held-only) held_only=1; shift ;;
-    -h|--help) sed -n '2,20p' "$0"; exit 0 ;;
+    --indoor-plan) indoor_plan="$2"; shift 2 ;;
+    -h|--help) sed -n '2,23p' "$0"; exit 0 ;;
     *) echo "make_blender_world: unknown argument $1" >&2; exit 2 ;;
   esac
 done
@@ -54,6 +58,7 @@ failed=0 done_count=0 wanted=0
 for ((i = 0; i < count; i++)); do
   s=$((seed + i))
   if ((held_only && s % 3 != 0)); then continue; fi  # the split rule of scripts/blender/world.py
+  if [[ -n "$indoor_plan" ]] && ((s % 4 == 3)); then continue; fi  # outdoor seeds (world.py's rule)
   wanted=$((wanted + 1))
   dir="$out/scene_$s"
   if [[ -f "$dir/scene_done.json" ]]; then done_count=$((done_count + 1)); continue; fi
@@ -62,7 +67,7 @@ for ((i = 0; i < count; i++)); do
   nc=0
   if ((i < noise_check)); then nc=1; fi
   start=$(date +%s)
-  if blender -b --factory-startup --python "$here/blender/world.py" -- --out "$dir" --seed "$s" \
+  if PROPCAM_WORLD_INDOOR_PLAN="$indoor_plan" blender -b --factory-startup --python "$here/blender/world.py" -- --out "$dir" --seed "$s" \
       --props "$out/props" --size "$size" --spp "$spp" --max-spp "$max_spp" --noise-target "$noise_target" \
       --threads "$threads" --probe-spp "$probe_spp" --noise-check "$nc" >"$dir/blender.log" 2>&1 && [[ -f "$dir/scene_done.json" ]]; then
     done_count=$((done_count + 1))

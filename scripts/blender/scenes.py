@@ -7,6 +7,7 @@ with the Blender terms in `lights_blender`), support surfaces (floor cells,
 table tops, ground) and obstacles (AABBs) for the prop, and the camera's
 allowed region and preferred heading."""
 import math
+import os
 
 import bpy
 import numpy as np
@@ -649,7 +650,15 @@ def build_indoor(sc):
         slope = ("x", 0.0, h_low, W, h_high)
         H = max(h_low, h_high)
     # light plan
-    plan = rnd.choice(["ceiling", "ceiling", "lamps", "window_sun", "window_overcast", "offscreen", "dim", "mixed"])
+    plans = ["ceiling", "ceiling", "lamps", "window_sun", "window_overcast", "offscreen", "dim", "mixed"]
+    plan = rnd.choice(plans)
+    # a study of one kind of light (make_blender_world.sh --indoor-plan): the
+    # draw above still happens, so the seed's other choices stay the same
+    forced = os.environ.get("PROPCAM_WORLD_INDOOR_PLAN", "")
+    if forced:
+        if forced not in plans:
+            raise ValueError("unknown indoor plan %r (one of %s)" % (forced, ", ".join(sorted(set(plans)))))
+        plan = forced
     if kind == "corridor" and plan in ("lamps",):
         plan = "ceiling"
     sc.choices.update({"height_m": H, "plan": plan, "size_m": [W, D], "kelvin": rnd.choice([2700, 3000, 4000, 5000]),
