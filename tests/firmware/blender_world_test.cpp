@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <nlohmann/json.hpp>
 
 #include "world_bench/bench_worlds.h"
@@ -49,6 +50,32 @@ TEST(BlenderWorld, HeldOnlySkipsTheTuneSplitsSeeds) {
   EXPECT_FALSE(fs::exists(dir / "scene_1"));
   EXPECT_FALSE(fs::exists(dir / "scene_2"));
   EXPECT_TRUE(fs::exists(dir / "world.json"));
+}
+
+// --indoor-plan gives an indoor seed that light plan and skips outdoor
+// seeds; a sun through a window reaches the truth as a sun through its window.
+TEST(BlenderWorld, AnIndoorPlanIsForcedAndItsWindowsReachTheTruth) {
+  if (!have_blender()) GTEST_SKIP() << "blender is not installed (scripts/setup.sh installs it)";
+  const fs::path dir = scratch("indoor_plan");
+  // Seed 3 is outdoors (skipped), seed 4 indoors.
+  const auto made = make_blender_world(dir, "--count 2 --seed 3 --size 64x48 --spp 8 --max-spp 8 --probe-spp 8 "
+                                            "--noise-check 0 --threads 2 --indoor-plan window_sun");
+  ASSERT_EQ(made.exit_code, 0) << made.out;
+  EXPECT_FALSE(fs::exists(dir / "scene_3"));
+  std::ifstream meta_file(dir / "scene_4" / "meta.json");
+  const json meta = json::parse(meta_file);
+  EXPECT_EQ(meta["choices"]["plan"], "window_sun");
+  const inference::SceneModel truth = inference::load_scene((dir / "scene_4" / "truth").string());
+  ASSERT_FALSE(truth.windows.empty());
+  EXPECT_EQ(truth.windows.size(), meta["portals"].size());
+  int through = 0;
+  for (const auto& light : truth.lights) {
+    if (light.type == inference::LightSource::Type::Sun) EXPECT_TRUE(light.through_windows);
+    through += light.through_windows;
+  }
+  EXPECT_GE(through, 1);
+  const auto wrong = make_blender_world(scratch("no_such_plan"), "--count 1 --seed 4 --size 64x48 --indoor-plan sunny");
+  EXPECT_NE(wrong.exit_code, 0);
 }
 
 // Small scenes, made and rendered by Blender alone, read and scored by the
