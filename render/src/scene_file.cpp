@@ -402,7 +402,7 @@ void read_portal(const Reader& r, const json& j, const std::string& f, LightRig&
   r.only_fields(j, f, {"position", "normal", "size", "rotation_deg", "name"});
   const Quad quad = read_quad(r, j, f);
   const Portal portal{quad.corner, quad.edge_u, quad.edge_v};
-  if (!portal.valid()) r.fail(f + ".size", "a portal needs an area of at least " + std::to_string(kMinAreaLightArea) + " m^2");
+  if (!portal.valid()) r.fail(f + ".size", "a portal needs an area (a size of 0 lets nothing through)");
   rig.portals.push_back(portal);
 }
 
