@@ -116,6 +116,11 @@ void check_finite(const cv::Mat& m, const char* what) {
   if (!m.empty() && !cv::checkRange(m)) throw std::runtime_error(std::string("scene model: non-finite ") + what);
 }
 
+// A window as the renderer's portal (the rig's, and what validate() checks).
+render::Portal as_portal(const Window& w) {
+  return {w.corner.cast<float>(), w.edge_u.cast<float>(), w.edge_v.cast<float>()};
+}
+
 }  // namespace
 
 const char* to_string(LightSource::Type type) {
@@ -168,8 +173,7 @@ render::PinholeCamera SceneModel::camera() const {
 render::LightRig make_light_rig(const std::vector<LightSource>& lights, bool unit_intensity,
                                 const std::vector<Window>& windows) {
   render::LightRig rig;
-  for (const Window& w : windows)
-    rig.portals.push_back({w.corner.cast<float>(), w.edge_u.cast<float>(), w.edge_v.cast<float>()});
+  for (const Window& w : windows) rig.portals.push_back(as_portal(w));
   for (const LightSource& l : lights) {
     const Eigen::Vector3f intensity = unit_intensity ? Eigen::Vector3f::Ones() : Eigen::Vector3f(l.intensity.cast<float>());
     if (l.type == LightSource::Type::Area) {
@@ -225,8 +229,7 @@ void SceneModel::validate() const {
   }
   if (windows.size() > kMaxWindows) throw std::runtime_error("scene model: more windows than " + std::to_string(kMaxWindows));
   for (const Window& w : windows) {
-    const render::Portal portal{w.corner.cast<float>(), w.edge_u.cast<float>(), w.edge_v.cast<float>()};
-    if (!w.corner.allFinite() || !portal.valid())
+    if (!w.corner.allFinite() || !as_portal(w).valid())
       throw std::runtime_error("scene model: a window is not finite or has no area");
   }
   if (!(imaging.blur_sigma_px >= 0 && imaging.blur_sigma_px <= kMaxImagingBlurPx))
