@@ -152,6 +152,7 @@ LightMoments probe_light_moments(const render::Scene& scene, const render::Light
   // The environment (and emissive surfaces) seen directly, past the scene's occluders.
   render::LightRig env_rig;
   env_rig.environment = rig.environment;
+  env_rig.portals = rig.portals;
   render::RenderSettings env_settings = direct_settings;
   env_settings.samples_per_pixel = spp;
 
@@ -184,6 +185,7 @@ LightMoments probe_light_moments(const render::Scene& scene, const render::Light
     const double E = luminance(sun.irradiance);
     if (!(E > 0) || !std::isfinite(E)) continue;
     const Eigen::Vector3f d = sun.direction.normalized();
+    if (!lights.arrives_from_outside(point, d, sun.through_portals)) continue;  // a window's sun, not through one
     if (scene.occluded(point, d, std::numeric_limits<float>::infinity(), false)) continue;
     const Eigen::Vector3d w = d.cast<double>();
     m.vector += E * w;

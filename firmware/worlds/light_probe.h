@@ -38,7 +38,8 @@ struct LightMoments {
 //  - area and sphere lights seen directly, by light sampling with shadow
 //    rays (a 24x24 jittered grid per light: small bright bulbs a pixel grid
 //    would catch with a few samples), and suns analytically, each where the
-//    ray toward it is free (a 0.27-degree disc is missed by pixel sampling).
+//    ray toward it is free (a 0.27-degree disc is missed by pixel sampling)
+//    and, for a sun through the rig's portals, crosses one.
 // Lights are scaled down for the renders (and the sums up again) so that no
 // seen light reaches the path tracer's per-sample clamp. Prop lamps
 // (prop_only) are left out. Deterministic for a seed. Cost: 6 (2 spp + 1)

@@ -280,6 +280,8 @@ SceneModel complete_scene(const cv::Mat& photo_linear, const GeometryEstimate& g
   scene.hidden_facades = std::move(lighting.hidden_facades);
   scene.enclosure = lighting.enclosure;
   scene.light_source_mask = lighting.source_mask;
+  scene.windows = std::move(lighting.windows);
+  if (!lighting.albedo.empty()) scene.albedo = lighting.albedo;  // a sun patch's light taken out of it
   if (lighting.albedo_scale != 1.0) {
     scale_albedo(scene.albedo, lighting.albedo_scale);
     for (auto& f : scene.hidden_facades) f.albedo = (f.albedo * static_cast<float>(lighting.albedo_scale)).cwiseMin(1.f);

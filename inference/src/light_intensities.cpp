@@ -12,6 +12,7 @@
 #include "propcam/inference/room_enclosure.h"
 #include "propcam/inference/sun_choice.h"
 #include "propcam/inference/sun_from_shadows.h"
+#include "propcam/inference/support_planes.h"
 #include "propcam/render/depth_mesh.h"
 #include "propcam/render/path_tracer.h"
 #include "propcam/render/scene.h"
@@ -35,18 +36,6 @@ constexpr double kMinChannelGain = 0.25, kMaxChannelGain = 4.0;
 // is coal, times 1.9 is snow. Below kMinMeanAlbedo an albedo image is black
 // and says nothing of its mean.
 constexpr double kMinAlbedoScale = 0.1, kMaxAlbedoScale = 1.9, kMinMeanAlbedo = 1e-4;
-
-// The layout's floor and ceiling heights (world y), where it has them.
-RoomHeights room_heights(const std::vector<SupportPlane>& planes) {
-  RoomHeights h;
-  for (const auto& p : planes) {
-    if (!(std::abs(p.normal.y()) > 0.5)) continue;
-    const double y = -p.offset / p.normal.y();
-    if (p.name == "floor") h.floor_y = y;
-    if (p.name == "ceiling") h.ceiling_y = y;
-  }
-  return h;
-}
 
 // The photo, depth, albedo and source mask at the fit's (smaller) size.
 struct FitImages {
@@ -542,7 +531,7 @@ void fit_light_intensities(const LightFitInputs& in, std::vector<Vector3d>& colo
   build_fit_scene(scene, fit, in.depth, in.albedo, in.camera, in.planes, in.indoor, options, in.cues, out);
   // Area lights first, the environment last: the same order as out.lights,
   // so basis render i belongs to out.lights[i].
-  const render::LightRig rig = make_light_rig(out.lights, true);
+  const render::LightRig rig = make_light_rig(out.lights, true, out.windows);
   const render::RenderSettings settings = basis_render_settings(options);
   // One set of paths for all lights (render_background_light_images): about
   // half the time of a render per light.

@@ -9,6 +9,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "propcam/inference/light_classifier.h"
+#include "propcam/inference/support_planes.h"
 #include "load_once.h"
 #include "propcam/render/depth_mesh.h"
 #include "propcam/render/scene.h"
@@ -418,6 +419,45 @@ std::vector<Vector3d> add_unseen_sources(const cv::Mat& photo_linear, const rend
   return ranked_sun_directions;
 }
 
+// --- Out-of-view light a sun patch shows: the sun through a window above
+//     the patch (white, like every unseen light). Returns the albedo the fit
+//     uses: the one passed in, or a copy without the patch's light.
+cv::Mat add_sun_through_window(const cv::Mat& photo_linear, const cv::Mat& depth, const cv::Mat& albedo,
+                               const render::PinholeCamera& camera, const std::vector<SupportPlane>& planes,
+                               bool indoor, const LightingOptions& options, const GeometryCues& cues,
+                               LightingEstimate& out, std::vector<Vector3d>& colours) {
+  const auto start = Clock::now();
+  StageReport report;
+  report.stage = "sun_patch";
+  if (!indoor || !options.sun_from_patch) {
+    report.usable = false;
+    report.why = indoor ? "switched off" : "outdoors: the sun is the sky's";
+    out.reports.push_back(report);
+    return albedo;
+  }
+  const SunPatch patch =
+      find_sun_patch(photo_linear, depth, camera, room_heights(planes), options.sun_patch, cues.orientation);
+  report.usable = patch.found;
+  report.why = patch.why;
+  report.details = patch.details;
+  cv::Mat fit_albedo = albedo;
+  if (patch.found) {
+    fit_albedo = albedo.clone();
+    report.details["albedo_divided_by"] = take_sun_patch_out_of_albedo(fit_albedo, patch);
+    out.albedo = fit_albedo;
+    out.windows.push_back(patch.window);
+    LightSource sun;
+    sun.type = LightSource::Type::Sun;
+    sun.direction = patch.sun_direction;
+    sun.through_windows = true;
+    out.lights.push_back(sun);
+    colours.push_back(Vector3d::Ones());
+  }
+  report.seconds = seconds_since(start);
+  out.reports.push_back(report);
+  return fit_albedo;
+}
+
 // --- Out-of-view light: the photo wrapped onto a sphere (the sky's colour
 //     above the horizon when it was seen). It is always the last light.
 void add_environment(const cv::Mat& photo_linear, const render::PinholeCamera& camera, const LightingOptions& options,
@@ -456,13 +496,22 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   // --- Out-of-view sources: the ranked library's lights, and hypotheses.
   const std::vector<Vector3d> ranked_sun_directions =
       add_unseen_sources(photo_linear, camera, planes, indoor, options, cues, classifier_mask, search_sun, out, colours);
+  // --- Out-of-view light a sun patch on the floor shows.
+  const cv::Mat fit_albedo =
+      add_sun_through_window(photo_linear, depth, albedo, camera, planes, indoor, options, cues, out, colours);
   // --- Out-of-view light: the photo wrapped onto a sphere.
   add_environment(photo_linear, camera, options, sky, sky_calibrated, out, colours);
   // --- Intensities: basis renders of the empty scene, one light at a time,
   //     then the paper's fit of intensities and camera response.
-  const LightFitInputs inputs{photo_linear, depth, albedo, camera, planes, indoor, options, cues,
+  const LightFitInputs inputs{photo_linear, depth, fit_albedo, camera, planes, indoor, options, cues,
                               sky_calibrated, search_sun, ranked_sun_directions, visible_sources};
   fit_light_intensities(inputs, colours, out);
+  // The fit switched the patch's sun off: the scene keeps no window and the
+  // albedo it had.
+  if (std::none_of(out.lights.begin(), out.lights.end(), [](const LightSource& l) { return l.through_windows; })) {
+    out.windows.clear();
+    out.albedo = cv::Mat();
+  }
   return out;
 }
 

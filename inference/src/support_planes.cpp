@@ -189,4 +189,15 @@ InsertionFlattening flatten_insertion_region(cv::Mat& depth, cv::Mat& normals, c
   return r;
 }
 
+RoomHeights room_heights(const std::vector<SupportPlane>& planes) {
+  RoomHeights h;
+  for (const auto& p : planes) {
+    if (!(std::abs(p.normal.y()) > 0.5)) continue;
+    const double y = -p.offset / p.normal.y();
+    if (p.name == "floor") h.floor_y = y;
+    if (p.name == "ceiling") h.ceiling_y = y;
+  }
+  return h;
+}
+
 }  // namespace propcam::inference

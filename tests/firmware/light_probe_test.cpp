@@ -127,6 +127,24 @@ TEST(LightProbe, OccludedSunGivesNothing) {
   EXPECT_TRUE(m.vector.allFinite());
 }
 
+// A sun that comes through windows reaches the point only through one.
+TEST(LightProbe, ASunThroughAWindowReachesOnlyWhatTheWindowLets) {
+  const auto scene = floor_scene(0.f);
+  render::LightRig rig;
+  render::SunLight sun;
+  sun.direction = Eigen::Vector3f(0.f, 1.f, 0.f);
+  sun.irradiance = Eigen::Vector3f::Constant(10.f);
+  sun.through_portals = true;
+  rig.suns.push_back(sun);
+  // A window 2 m up over x, z in [-0.5, 0.5].
+  rig.portals.push_back({Eigen::Vector3f(-0.5f, 2.f, -0.5f), Eigen::Vector3f(1.f, 0.f, 0.f), Eigen::Vector3f(0.f, 0.f, 1.f)});
+  const LightMoments under = probe_light_moments(*scene, rig, Eigen::Vector3f(0, 0.5f, 0), 8, 1, 4);
+  EXPECT_NEAR(under.total, 10.0, 1e-3);
+  EXPECT_GT(under.vector.y(), 9.9);
+  const LightMoments beside = probe_light_moments(*scene, rig, Eigen::Vector3f(2.f, 0.5f, 0), 8, 1, 4);
+  EXPECT_LT(beside.total, 1e-6);
+}
+
 TEST(LightProbe, UniformSkyOverBlackFloor) {
   const auto scene = floor_scene(0.f, false, 1000.f);
   render::LightRig rig;

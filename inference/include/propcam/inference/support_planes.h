@@ -7,6 +7,7 @@
 #include <opencv2/core.hpp>
 #include <vector>
 
+#include "propcam/inference/room_enclosure.h"
 #include "propcam/inference/scene_model.h"
 #include "propcam/render/camera.h"
 
@@ -29,6 +30,10 @@ struct SupportPlaneOptions {
 std::vector<SupportPlane> find_support_planes(const cv::Mat& depth, const cv::Mat& normals,
                                               const render::PinholeCamera& camera, const SupportPlaneOptions& options,
                                               StageReport& report);
+
+// The floor's and the ceiling's heights (world y) among `planes`, where
+// they are there (the layout names them "floor" and "ceiling").
+RoomHeights room_heights(const std::vector<SupportPlane>& planes);
 
 struct InsertionFlattening {
   bool applied = false;
