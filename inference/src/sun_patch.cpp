@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 #include <tuple>
 
+#include "depth_samples.h"
 #include "luminance.h"
 #include "propcam/inference/orientation_map.h"
 #include "propcam/render/depth_mesh.h"
@@ -56,10 +57,9 @@ FloorMap floor_map(const cv::Mat& depth, const render::PinholeCamera& camera, do
   for (int y = 0; y < depth.rows; ++y)
     for (int x = 0; x < depth.cols; ++x) {
       if (on_wall(orientation, x, y, depth.cols, depth.rows)) continue;
-      const double d = depth.at<float>(y, x);
-      if (!(d > 0 && d < render::kSkyDepthM)) continue;  // also NaN
-      const Vector3d dir_cam((x - camera.cx) / camera.fx, (y - camera.cy) / camera.fy, 1.0);
-      const Vector3d p = camera.center_world + camera.R_world_from_cam * (dir_cam * d);
+      const float d = depth.at<float>(y, x);
+      if (!depth_samples::is_surface(d)) continue;
+      const Vector3d p = depth_samples::world_point(camera, x, y, d);
       if (!p.allFinite() || !(std::abs(p.y() - floor_y) < options.max_floor_height_m)) continue;
       f.mask.at<uint8_t>(y, x) = 255;
       f.xz.at<cv::Vec2f>(y, x) = {static_cast<float>(p.x()), static_cast<float>(p.z())};
@@ -69,14 +69,11 @@ FloorMap floor_map(const cv::Mat& depth, const render::PinholeCamera& camera, do
 }
 
 double percentile_on(const cv::Mat& values, const cv::Mat& mask, double q) {
-  std::vector<float> v;
+  std::vector<double> v;
   for (int y = 0; y < values.rows; ++y)
     for (int x = 0; x < values.cols; ++x)
       if (mask.at<uint8_t>(y, x) && std::isfinite(values.at<float>(y, x))) v.push_back(values.at<float>(y, x));
-  if (v.empty()) return 0.0;
-  const size_t k = std::min(v.size() - 1, static_cast<size_t>(q * static_cast<double>(v.size())));
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
-  return v[k];
+  return v.empty() ? 0.0 : depth_samples::percentile(std::move(v), q);
 }
 
 double mean_on(const cv::Mat& values, const cv::Mat& mask) {
