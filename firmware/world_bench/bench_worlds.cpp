@@ -239,6 +239,10 @@ std::vector<Row> rows_for(const std::vector<std::string>& sweeps, const std::str
     out.push_back({"sun_patch", "sun from a patch on the floor", [](inference::InferenceOptions& o) {
                      o.lighting.sun_from_patch = true;
                    }});
+  if (wanted("lit_walls"))
+    out.push_back({"lit_walls", "lamp from the walls' shading", [](inference::InferenceOptions& o) {
+                     o.lighting.lamp_from_lit_walls = true;
+                   }});
   if (wanted("geometry"))
     out.push_back({"geometry", "box layout only (no depth solve)", [](inference::InferenceOptions& o) {
                      o.geometry.solve = false;
@@ -333,7 +337,8 @@ json score_world_estimate(const WorldScene& w, const inference::SceneModel& est,
               {"truth_noise_8bit", number_or_null(w.render_noise_8bit)}};
   row["scene_class"] = scene_class_cues(est.reports);
   for (const auto& r : est.reports)
-    if (r.stage == "sun_patch") row["sun_patch"] = {{"found", r.usable}, {"why", r.why}, {"details", r.details}};
+    if (r.stage == "sun_patch" || r.stage == "lit_wall_lamp")
+      row[r.stage] = {{"found", r.usable}, {"why", r.why}, {"details", r.details}};
   json seconds = stage_seconds(est.reports);
   seconds["inference"] = inference_seconds;
 
@@ -714,7 +719,7 @@ void add_bench_worlds_options(CLI::App& cmd, WorldsBenchArgs& a) {
   cmd.add_option("--own-spp", a.options.own.spp, "Own world: samples per pixel of photos and insertions")->check(CLI::Range(1, 4096));
   cmd.add_option("--panoramas", a.options.panorama.panoramas, "Panorama world: names or EXR files (default: all 26)")->delimiter(',');
   cmd.add_option("--views", a.options.panorama.views_per_panorama, "Panorama world: views per panorama")->check(CLI::PositiveNumber);
-  cmd.add_option("--sweeps", a.sweeps, "Extra rows: comma-separated subset of spp,albedo,grey_world,fit,lights,outdoor_sources,enclosure,sun_patch (the sun of a patch on the floor),geometry,oracle (the true scene),camera (the camera match's effects),colour (the light tint unbounded by the photo's cast),vignette (a lens's fall-off on every photo, unknown and calibrated)");
+  cmd.add_option("--sweeps", a.sweeps, "Extra rows: comma-separated subset of spp,albedo,grey_world,fit,lights,outdoor_sources,enclosure,sun_patch (the sun of a patch on the floor),lit_walls (a lamp out of view from the walls' shading),geometry,oracle (the true scene),camera (the camera match's effects),colour (the light tint unbounded by the photo's cast),vignette (a lens's fall-off on every photo, unknown and calibrated)");
   cmd.add_option("--plot", a.options.plot_dir, "Write worlds.png (gnuplot) to this folder");
   cmd.add_flag("--json", a.json_out, "Machine-readable output");
 }
@@ -722,7 +727,7 @@ void add_bench_worlds_options(CLI::App& cmd, WorldsBenchArgs& a) {
 int run_bench_worlds_command(WorldsBenchArgs a) {
   a.options.worlds = parse_sweeps(a.worlds, {"own", "blender", "panorama"});
   if (a.options.worlds.empty()) throw std::invalid_argument("--worlds names no world");
-  a.options.sweeps = parse_sweeps(a.sweeps, {"spp", "albedo", "grey_world", "fit", "lights", "outdoor_sources", "enclosure", "sun_patch", "geometry", "oracle", "camera", "colour", "vignette"});
+  a.options.sweeps = parse_sweeps(a.sweeps, {"spp", "albedo", "grey_world", "fit", "lights", "outdoor_sources", "enclosure", "sun_patch", "lit_walls", "geometry", "oracle", "camera", "colour", "vignette"});
   parse_bench_size(a.own_size, 16, a.options.own.width, a.options.own.height);
   a.options.quiet = a.json_out;
   return report_bench_result(run_worlds_bench(a.options),

@@ -458,6 +458,38 @@ cv::Mat add_sun_through_window(const cv::Mat& photo_linear, const cv::Mat& depth
   return fit_albedo;
 }
 
+// --- Out-of-view light the walls show: a lamp where the falloff of their
+//     shading points (white, like every unseen light).
+void add_lamp_from_lit_walls(const cv::Mat& photo_linear, const cv::Mat& depth, const cv::Mat& albedo,
+                             const render::PinholeCamera& camera, const std::vector<SupportPlane>& planes,
+                             bool indoor, const LightingOptions& options, LightingEstimate& out,
+                             std::vector<Vector3d>& colours) {
+  const auto start = Clock::now();
+  StageReport report;
+  report.stage = "lit_wall_lamp";
+  if (!indoor || !options.lamp_from_lit_walls) {
+    report.usable = false;
+    report.why = indoor ? "switched off" : "outdoors";
+    out.reports.push_back(report);
+    return;
+  }
+  const LitWallLamp lamp =
+      find_lit_wall_lamp(photo_linear, depth, albedo, camera, planes, out.source_mask, options.lit_wall_lamp);
+  report.usable = lamp.found;
+  report.why = lamp.why;
+  report.details = lamp.details;
+  if (lamp.found) {
+    LightSource bulb;
+    bulb.type = LightSource::Type::Point;
+    bulb.position = lamp.position;
+    bulb.radius = options.lit_wall_lamp.bulb_radius_m;
+    out.lights.push_back(bulb);
+    colours.push_back(Vector3d::Ones());
+  }
+  report.seconds = seconds_since(start);
+  out.reports.push_back(report);
+}
+
 // --- Out-of-view light: the photo wrapped onto a sphere (the sky's colour
 //     above the horizon when it was seen). It is always the last light.
 void add_environment(const cv::Mat& photo_linear, const render::PinholeCamera& camera, const LightingOptions& options,
@@ -499,6 +531,8 @@ LightingEstimate estimate_lighting(const cv::Mat& photo_linear, const cv::Mat& d
   // --- Out-of-view light a sun patch on the floor shows.
   const cv::Mat fit_albedo =
       add_sun_through_window(photo_linear, depth, albedo, camera, planes, indoor, options, cues, out, colours);
+  // --- Out-of-view light the walls' shading shows.
+  add_lamp_from_lit_walls(photo_linear, depth, fit_albedo, camera, planes, indoor, options, out, colours);
   // --- Out-of-view light: the photo wrapped onto a sphere.
   add_environment(photo_linear, camera, options, sky, sky_calibrated, out, colours);
   // --- Intensities: basis renders of the empty scene, one light at a time,

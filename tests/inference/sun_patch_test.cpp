@@ -5,11 +5,8 @@
 #include <cmath>
 #include <numbers>
 
+#include "box_room.h"
 #include "propcam/inference/lighting.h"
-#include "propcam/render/mesh_shapes.h"
-#include "propcam/render/path_tracer.h"
-#include "propcam/render/depth_mesh.h"
-#include "propcam/render/scene.h"
 
 namespace propcam::inference {
 namespace {
@@ -33,63 +30,25 @@ Vector3d true_sun() {
 }
 
 render::Mesh room_with_window() {
-  render::Mesh m;
-  render::Material wall;
-  wall.albedo = {0.55f, 0.5f, 0.45f};
-  m.materials = {wall};
-  const float x0 = -3, x1 = 3, y0 = 0, y1 = 2.8f, z0 = -6, z1 = 2;
-  render::add_quad(m, {x0, y0, z1}, {x1, y0, z1}, {x1, y0, z0}, {x0, y0, z0}, 0, 1.f);  // floor
-  render::add_quad(m, {x0, y1, z0}, {x1, y1, z0}, {x1, y1, z1}, {x0, y1, z1}, 0, 1.f);  // ceiling
-  render::add_quad(m, {x0, y0, z0}, {x1, y0, z0}, {x1, y1, z0}, {x0, y1, z0}, 0, 1.f);  // far wall
-  render::add_quad(m, {x1, y0, z1}, {x0, y0, z1}, {x0, y1, z1}, {x1, y1, z1}, 0, 1.f);  // back wall
-  render::add_quad(m, {x0, y0, z1}, {x0, y0, z0}, {x0, y1, z0}, {x0, y1, z1}, 0, 1.f);  // left wall
+  render::Mesh m = box_room::without_right_wall({0.55f, 0.5f, 0.45f});
   // The right wall around its window.
   const float sill = 0.8f, top = 2.2f, wz0 = -4.f, wz1 = -2.5f;
-  auto right = [&](float ya, float yb, float za, float zb) {
-    render::add_quad(m, {x1, ya, za}, {x1, ya, zb}, {x1, yb, zb}, {x1, yb, za}, 0, 1.f);
-  };
-  right(y0, sill, z0, z1);
-  right(top, y1, z0, z1);
-  right(sill, top, z0, wz0);
-  right(sill, top, wz1, z1);
+  box_room::add_right_wall(m, box_room::kFloorY, sill, box_room::kFarZ, box_room::kBackZ);
+  box_room::add_right_wall(m, top, box_room::kCeilingY, box_room::kFarZ, box_room::kBackZ);
+  box_room::add_right_wall(m, sill, top, box_room::kFarZ, wz0);
+  box_room::add_right_wall(m, sill, top, wz1, box_room::kBackZ);
   return m;
 }
 
-struct SunRoom {
-  render::PinholeCamera camera;
-  cv::Mat photo, depth, albedo;
-};
-
-const SunRoom& sun_room() {
-  static const SunRoom room = [] {
-    render::Scene scene;
-    scene.add_mesh(room_with_window(), render::Layer::Background);
-    scene.commit();
-    SunRoom r;
-    r.camera = render::pinhole_with_fov(160, 120, 60);
-    r.camera.R_world_from_cam = render::rotation_from_yaw_pitch_roll(0, -25 * kPi / 180, 0);
-    r.camera.center_world = {0, 1.5, 0};
-    const render::PrimaryBuffers b = render::render_primary_buffers(scene, r.camera, false);
-    r.depth = b.depth.clone();
-    r.depth.setTo(render::kSkyDepthM, b.depth <= 0);
-    r.albedo = b.albedo;
+const box_room::View& sun_room() {
+  static const box_room::View room = [] {
     render::LightRig rig;
     render::SunLight sun;
     sun.direction = true_sun().cast<float>();
     sun.irradiance = Vector3f::Constant(6.f);
     rig.suns.push_back(sun);
-    render::AreaLight panel;  // a dim ceiling panel: the room's own light
-    panel.corner = {-0.5f, 2.79f, -3.5f};
-    panel.edge_u = {1.f, 0.f, 0.f};
-    panel.edge_v = {0.f, 0.f, 1.f};
-    if (panel.normal().y() > 0) std::swap(panel.edge_u, panel.edge_v);
-    panel.radiance = Vector3f::Constant(1.5f);
-    rig.area_lights.push_back(panel);
-    render::RenderSettings settings;
-    settings.samples_per_pixel = 32;
-    settings.max_bounces = 2;
-    r.photo = render::render_background_image(scene, r.camera, rig, settings);
-    return r;
+    rig.area_lights.push_back(box_room::dim_ceiling_panel(1.5f));  // the room's own light
+    return box_room::render_view(room_with_window(), 25, rig);
   }();
   return room;
 }
@@ -109,7 +68,7 @@ double azimuth_error_deg(const Vector3d& a, const Vector3d& b) {
 // The patch is found, and its sun comes from the right wall's side at the
 // true azimuth (the outline's sheared sides), above the horizon.
 TEST(SunPatch, FindsTheSunThroughAWindowOutOfView) {
-  const SunRoom& r = sun_room();
+  const box_room::View& r = sun_room();
   const SunPatch p = find_sun_patch(r.photo, r.depth, r.camera, floor_and_ceiling());
   ASSERT_TRUE(p.found) << p.why << " " << p.details.dump();
   EXPECT_GT(p.brightness_ratio, 2.0);
@@ -123,7 +82,7 @@ TEST(SunPatch, FindsTheSunThroughAWindowOutOfView) {
 // The window lets the sun reach the patch and whatever stands in it, and
 // no floor outside it.
 TEST(SunPatch, ItsWindowPassesTheSunOntoThePatchOnly) {
-  const SunRoom& r = sun_room();
+  const box_room::View& r = sun_room();
   const SunPatch p = find_sun_patch(r.photo, r.depth, r.camera, floor_and_ceiling());
   ASSERT_TRUE(p.found) << p.why;
   render::LightRig rig;
@@ -145,7 +104,7 @@ TEST(SunPatch, ItsWindowPassesTheSunOntoThePatchOnly) {
 // An albedo that took the patch's light in is made continuous with the
 // floor around it.
 TEST(SunPatch, TakesThePatchsLightOutOfTheAlbedo) {
-  const SunRoom& r = sun_room();
+  const box_room::View& r = sun_room();
   const SunPatch p = find_sun_patch(r.photo, r.depth, r.camera, floor_and_ceiling());
   ASSERT_TRUE(p.found) << p.why;
   cv::Mat lit = r.photo.clone();  // the photo itself as the albedo: all light taken in
@@ -165,7 +124,7 @@ TEST(SunPatch, TakesThePatchsLightOutOfTheAlbedo) {
 // Through the lighting stage: the sun through the patch's window is a
 // fitted light of the room, and the scene gets the window.
 TEST(SunPatch, TheLightingFitsTheSunThroughTheWindow) {
-  const SunRoom& r = sun_room();
+  const box_room::View& r = sun_room();
   SupportPlane floor, ceiling;
   floor.name = "floor";
   floor.normal = {0, 1, 0};
