@@ -32,6 +32,8 @@ struct Sample {
   double shading = 0.0;
 };
 
+std::string percent(double share) { return std::to_string(static_cast<int>(std::lround(100 * share))) + "%"; }
+
 bool is_room_surface(const SupportPlane& p) { return p.name == "ceiling" || p.name.rfind("wall", 0) == 0; }
 
 std::vector<Sample> sample_surfaces(const cv::Mat& photo, const cv::Mat& depth, const cv::Mat& albedo,
@@ -233,7 +235,7 @@ LitWallLamp find_lit_wall_lamp(const cv::Mat& photo_linear, const cv::Mat& depth
   out.details["explained"] = out.explained;
   out.details["lamp_share"] = out.lamp_share;
   if (out.explained < options.min_explained) {
-    out.why = "no lamp's falloff explains the walls' shading (" + std::to_string(out.explained) + " of its variance)";
+    out.why = "no lamp's falloff explains the walls' shading (" + percent(out.explained) + " of its variance)";
     return out;
   }
   if (out.lamp_share < options.min_lamp_share) {
@@ -241,8 +243,7 @@ LitWallLamp find_lit_wall_lamp(const cv::Mat& photo_linear, const cv::Mat& depth
     return out;
   }
   out.found = true;
-  out.why = "a lamp's falloff explains " + std::to_string(static_cast<int>(std::lround(100 * out.explained))) +
-            "% of the walls' shading";
+  out.why = "a lamp's falloff explains " + percent(out.explained) + " of the walls' shading";
   return out;
 }
 

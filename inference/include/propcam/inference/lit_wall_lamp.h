@@ -42,7 +42,8 @@ struct LitWallLampOptions {
   // shadows, texture) are left out.
   double min_explained = 0.35;
   double trim_share = 0.1;
-  // At the brightest sample the lamp gives at least this share of the light.
+  // Where it lights the walls most, the lamp gives at least this share of
+  // their light.
   double min_lamp_share = 0.3;
   // The lamp's bulb (m): a small sphere, so its shadows stay sharp.
   double bulb_radius_m = kDefaultPointLightRadiusM;
@@ -53,7 +54,7 @@ struct LitWallLamp {
   std::string why;                                   // why found or not
   Eigen::Vector3d position = Eigen::Vector3d::Zero();  // world
   double explained = 0.0;     // the share of the shading's variance the lamp explains (trimmed)
-  double lamp_share = 0.0;    // its share of the light at the brightest sample
+  double lamp_share = 0.0;    // its share of the light where it lights the walls most
   int samples = 0;            // wall and ceiling samples read
   nlohmann::json details = nlohmann::json::object();
 };
