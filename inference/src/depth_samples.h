@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <opencv2/core.hpp>
+#include <optional>
 #include <vector>
 
 #include "propcam/render/camera.h"
@@ -18,6 +19,25 @@ inline bool is_surface(float depth) { return std::isfinite(depth) && depth > 0 &
 
 inline Eigen::Vector3d world_point(const render::PinholeCamera& c, double x, double y, double depth) {
   return c.center_world + c.R_world_from_cam * Eigen::Vector3d((x - c.cx) / c.fx * depth, (y - c.cy) / c.fy * depth, depth);
+}
+
+// Where a world point falls in the photo, its depth along the camera's z,
+// and the depth the photo sees at that pixel. None when the point is not
+// farther than `min_view_depth` in front of the camera or falls outside
+// the frame.
+struct SeenAt {
+  cv::Point pixel;
+  double point_depth = 0.0;
+  float seen_depth = 0.0f;
+};
+inline std::optional<SeenAt> seen_at(const render::PinholeCamera& c, const cv::Mat& depth, const Eigen::Vector3d& p,
+                                     double min_view_depth) {
+  const Eigen::Vector3d pc = c.world_to_camera(p);
+  if (!(pc.z() > min_view_depth)) return std::nullopt;
+  const double u = c.fx * pc.x() / pc.z() + c.cx, v = c.fy * pc.y() / pc.z() + c.cy;
+  if (!(u >= 0 && v >= 0 && u < depth.cols && v < depth.rows)) return std::nullopt;
+  const cv::Point px(static_cast<int>(u), static_cast<int>(v));
+  return SeenAt{px, pc.z(), depth.at<float>(px)};
 }
 
 // The p-th quantile (0..1, nearest rank) of a non-empty list.

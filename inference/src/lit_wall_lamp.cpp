@@ -3,9 +3,11 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 #include "depth_samples.h"
 #include "luminance.h"
+#include "propcam/inference/support_planes.h"
 
 namespace propcam::inference {
 namespace {
@@ -23,7 +25,7 @@ constexpr double kMinViewDepthM = 0.1;
 constexpr double kMinLampHeightM = 0.2, kBelowCeilingM = 0.1;
 // The ceiling when the layout has none.
 constexpr double kDefaultCeilingM = 2.7;
-// The shading's variance must exceed this (of its median squared) for a
+// The shading's variance must exceed this share of its mean square for a
 // falloff to be read at all.
 constexpr double kMinRelativeVariance = 1e-4;
 
@@ -105,12 +107,8 @@ FalloffFit fit_falloff(const std::vector<Sample>& samples, const std::vector<dou
 // Whether the photo would show a lamp at `p`: it is in the frame, in front
 // of the camera, and the photo sees past it there.
 bool photo_would_show(const Vector3d& p, const cv::Mat& depth, const render::PinholeCamera& camera) {
-  const Vector3d c = camera.world_to_camera(p);
-  if (c.z() < kMinViewDepthM) return false;
-  const double u = camera.fx * c.x() / c.z() + camera.cx, v = camera.fy * c.y() / c.z() + camera.cy;
-  if (!(u >= 0 && v >= 0 && u < depth.cols && v < depth.rows)) return false;
-  const float seen = depth.at<float>(static_cast<int>(v), static_cast<int>(u));
-  return !depth_samples::is_surface(seen) || seen > kSeenPastShare * c.z();
+  const auto at = depth_samples::seen_at(camera, depth, p, kMinViewDepthM);
+  return at && (!depth_samples::is_surface(at->seen_depth) || at->seen_depth > kSeenPastShare * at->point_depth);
 }
 
 struct RoomBox {
@@ -119,9 +117,9 @@ struct RoomBox {
 
 RoomBox room_box(const render::PinholeCamera& camera, const std::vector<SupportPlane>& planes,
                  const LitWallLampOptions& options) {
-  double ceiling = kDefaultCeilingM;
-  for (const auto& p : planes)
-    if (p.name == "ceiling" && std::isfinite(p.offset) && p.offset > kMinLampHeightM + kBelowCeilingM) ceiling = p.offset;
+  const std::optional<double> fitted = room_heights(planes).ceiling_y;
+  const double ceiling =
+      fitted && std::isfinite(*fitted) && *fitted > kMinLampHeightM + kBelowCeilingM ? *fitted : kDefaultCeilingM;
   const double half = options.default_half_extent_m;
   return {Vector3d(camera.center_world.x() - half, kMinLampHeightM, camera.center_world.z() - half),
           Vector3d(camera.center_world.x() + half, ceiling - kBelowCeilingM, camera.center_world.z() + half)};

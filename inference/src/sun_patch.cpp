@@ -135,15 +135,12 @@ Vector3d floor_point(const Vector2d& xz, double floor_y) { return {xz.x(), floor
 // Would the window this sun comes through show in the photo, and does it?
 int window_evidence(const Vector3d& window_centre, const cv::Mat& depth, const cv::Mat& luminance,
                     double bright_level, const render::PinholeCamera& camera) {
-  const Vector3d pc = camera.R_world_from_cam.transpose() * (window_centre - camera.center_world);
-  if (!(pc.z() > kMinViewDepthM)) return 0;  // behind the camera
-  const double u = camera.fx * pc.x() / pc.z() + camera.cx, v = camera.fy * pc.y() / pc.z() + camera.cy;
-  if (!(u >= 0 && v >= 0 && u < depth.cols && v < depth.rows)) return 0;  // out of the frame
-  const cv::Point px(static_cast<int>(u), static_cast<int>(v));
-  const double seen = depth.at<float>(px);
-  if (!(seen >= kHiddenShare * pc.z())) return 0;  // something nearer hides it
-  if (seen > kSeenPastShare * pc.z() && seen < render::kSkyDepthM) return -1;  // the photo sees past it: no wall there
-  return luminance.at<float>(px) >= bright_level ? 1 : -1;
+  const auto at = depth_samples::seen_at(camera, depth, window_centre, kMinViewDepthM);
+  if (!at) return 0;  // behind the camera or out of the frame
+  const double seen = at->seen_depth;
+  if (!(seen >= kHiddenShare * at->point_depth)) return 0;  // something nearer hides it
+  if (seen > kSeenPastShare * at->point_depth && seen < render::kSkyDepthM) return -1;  // the photo sees past it: no wall there
+  return luminance.at<float>(at->pixel) >= bright_level ? 1 : -1;
 }
 
 }  // namespace
