@@ -140,8 +140,8 @@ struct LightingOptions {
   // Indoors, a lamp out of view where the falloff of the walls' and the
   // ceiling's shading points (lit_wall_lamp.h) joins the candidates as a
   // small spherical light; the fit weighs it. Off by default: it helps our
-  // own world's rooms (direction 21.4 -> 19.7 degrees) but not Blender's
-  // lamp-lit rooms (55.4 -> 57.4, composite 0.071 -> 0.078), and never
+  // own world's rooms (direction 21.4 -> 18.6 degrees) but not Blender's
+  // lamp-lit rooms (55.4 -> 55.5, composite 0.0713 -> 0.0721), and never
   // fires on the fresh held set (`propcam bench worlds --sweeps
   // lit_walls`; docs/lit_wall_lamp.md).
   bool lamp_from_lit_walls = false;
